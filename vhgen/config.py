@@ -1,0 +1,213 @@
+"""Job configuration: frozen dataclasses built from YAML at the edge.
+
+Every field is validated with a message naming the file and the field; unknown keys are
+errors. The core never handles raw dicts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from vhgen.camera import Intrinsics
+from vhgen.errors import ConfigError
+from vhgen.yamlio import check_keys, find_config, load_yaml
+
+BUILTIN_MOTION = "builtin:demo"
+
+
+def _num(d: dict, key: str, src, prefix: str, *, lo=None, hi=None, integer=False,
+         default=None):
+    if key not in d:
+        if default is None:
+            raise ConfigError(src, prefix + key, "required key is missing")
+        return default
+    v = d[key]
+    ok = isinstance(v, int) if integer else isinstance(v, (int, float))
+    if isinstance(v, bool) or not ok:
+        kind = "an integer" if integer else "a number"
+        raise ConfigError(src, prefix + key, f"must be {kind}, got {v!r}")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise ConfigError(src, prefix + key, f"{v!r} is outside [{lo}, {hi}]")
+    return int(v) if integer else float(v)
+
+
+def _range(d: dict, key: str, src, prefix: str, default: tuple[float, float], *, lo=None,
+           hi=None) -> tuple[float, float]:
+    if key not in d:
+        return default
+    v = d[key]
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = [v, v]
+    if (not isinstance(v, list) or len(v) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+        raise ConfigError(src, prefix + key, f"must be a number or [min, max], got {d[key]!r}")
+    a, b = float(v[0]), float(v[1])
+    if a > b:
+        raise ConfigError(src, prefix + key, f"min {a} > max {b}")
+    if (lo is not None and a < lo) or (hi is not None and b > hi):
+        raise ConfigError(src, prefix + key, f"[{a}, {b}] is outside [{lo}, {hi}]")
+    return (a, b)
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    name: str
+    intrinsics: Intrinsics
+    baseline_m: float
+    z_min_m: float
+    z_max_m: float
+    subpixel_px: float
+    disparity_noise_px: float
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> SensorConfig:
+        path = find_config("sensors", name_or_path)
+        d = load_yaml(path)
+        keys = {"name", "width", "height", "fx", "fy", "cx", "cy", "baseline_m", "z_min_m",
+                "z_max_m", "subpixel_px", "disparity_noise_px", "description"}
+        check_keys(d, keys, keys - {"description"}, path, "")
+        w = _num(d, "width", path, "", lo=8, hi=8192, integer=True)
+        h = _num(d, "height", path, "", lo=8, hi=8192, integer=True)
+        intr = Intrinsics(w, h, _num(d, "fx", path, "", lo=1e-3), _num(d, "fy", path, "", lo=1e-3),
+                          _num(d, "cx", path, ""), _num(d, "cy", path, ""))
+        zmin = _num(d, "z_min_m", path, "", lo=0.0)
+        zmax = _num(d, "z_max_m", path, "", lo=0.0, hi=65.0)
+        if zmin >= zmax:
+            raise ConfigError(path, "z_min_m", f"{zmin} >= z_max_m {zmax}")
+        return cls(name=str(d["name"]), intrinsics=intr,
+                   baseline_m=_num(d, "baseline_m", path, "", lo=1e-4),
+                   z_min_m=zmin, z_max_m=zmax,
+                   subpixel_px=_num(d, "subpixel_px", path, "", lo=0.0, hi=1.0),
+                   disparity_noise_px=_num(d, "disparity_noise_px", path, "", lo=0.0, hi=5.0))
+
+    def to_dict(self) -> dict:
+        out = dataclasses.asdict(self)
+        out["intrinsics"] = self.intrinsics.to_dict()
+        return out
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Camera placement, sampled per frame: the camera circles the subject's root."""
+
+    distance_m: tuple[float, float] = (2.2, 3.2)
+    height_m: tuple[float, float] = (0.9, 1.3)
+    yaw_deg: tuple[float, float] = (-60.0, 60.0)  # 0 = camera in front of the subject
+    look_at_height_m: tuple[float, float] = (0.85, 1.0)
+    near_m: float = 0.1
+    far_m: float = 20.0
+
+
+@dataclass(frozen=True)
+class AvatarConfig:
+    count: int = 2
+    scale: tuple[float, float] = (0.92, 1.08)
+
+
+@dataclass(frozen=True)
+class PosesConfig:
+    """Which source frames become poses (the sparsifier replaces this later)."""
+
+    frame_step: int = 10
+    max_per_motion: int = 0  # 0 = no limit
+    skip_first: int = 0  # e.g. 1 drops the converter's T-pose frame of cgspeed files
+
+
+@dataclass(frozen=True)
+class JobConfig:
+    name: str
+    seed: int
+    motions: tuple[str, ...]
+    retarget: str
+    labels: str
+    sensor: SensorConfig
+    assets: str | None
+    poses: PosesConfig
+    avatars: AvatarConfig
+    camera: CameraConfig
+    frames_per_shard: int
+    compression_level: int
+    backend: str
+    num_workers: int
+    source: str | None = None
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
+        path = Path(path)
+        d = load_yaml(path)
+        top = {"name", "seed", "motions", "retarget", "labels", "sensor", "assets", "poses",
+               "avatars", "camera", "output", "render", "num_workers", "description"}
+        check_keys(d, top, {"name", "motions"}, path, "")
+        motions = d["motions"]
+        if isinstance(motions, str):
+            motions = [motions]
+        if not isinstance(motions, list) or not motions or \
+                not all(isinstance(m, str) for m in motions):
+            raise ConfigError(path, "motions", "must be a BVH path, a folder, or a list of them")
+        resolved = []
+        for m in motions:
+            if m == BUILTIN_MOTION:
+                resolved.append(m)
+            else:
+                p = Path(m).expanduser()
+                resolved.append(str(p if p.is_absolute() else (path.parent / p).resolve()))
+
+        po = d.get("poses") or {}
+        check_keys(po, {"frame_step", "max_per_motion", "skip_first"}, set(), path, "poses.")
+        poses = PosesConfig(_num(po, "frame_step", path, "poses.", lo=1, integer=True, default=10),
+                            _num(po, "max_per_motion", path, "poses.", lo=0, integer=True,
+                                 default=0) if "max_per_motion" in po else 0,
+                            _num(po, "skip_first", path, "poses.", lo=0, integer=True,
+                                 default=0) if "skip_first" in po else 0)
+        av = d.get("avatars") or {}
+        check_keys(av, {"count", "scale"}, set(), path, "avatars.")
+        avatars = AvatarConfig(_num(av, "count", path, "avatars.", lo=1, hi=100000, integer=True,
+                                    default=2),
+                               _range(av, "scale", path, "avatars.", (0.92, 1.08), lo=0.3, hi=2.0))
+        ca = d.get("camera") or {}
+        cd = CameraConfig()
+        check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m",
+                        "far_m"}, set(), path, "camera.")
+        camera = CameraConfig(
+            _range(ca, "distance_m", path, "camera.", cd.distance_m, lo=0.1, hi=60),
+            _range(ca, "height_m", path, "camera.", cd.height_m, lo=-10, hi=10),
+            _range(ca, "yaw_deg", path, "camera.", cd.yaw_deg, lo=-360, hi=360),
+            _range(ca, "look_at_height_m", path, "camera.", cd.look_at_height_m, lo=-10, hi=10),
+            _num(ca, "near_m", path, "camera.", lo=1e-3, default=cd.near_m),
+            _num(ca, "far_m", path, "camera.", lo=0.5, default=cd.far_m))
+        out = d.get("output") or {}
+        check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
+        ren = d.get("render") or {}
+        check_keys(ren, {"backend"}, set(), path, "render.")
+        backend = overrides.pop("backend", None) or ren.get("backend", "egl")
+        if backend not in ("egl", "osmesa"):
+            raise ConfigError(path, "render.backend", f"must be egl or osmesa, got {backend!r}")
+        num_workers = overrides.pop("num_workers", None) or _num(
+            d, "num_workers", path, "", lo=1, hi=4096, integer=True, default=2)
+        if overrides:
+            raise ConfigError(path, "overrides", f"unknown overrides {sorted(overrides)}")
+        sensor_ref = d.get("sensor", "kinect_v1")
+        sensor_path = sensor_ref if not str(sensor_ref).endswith((".yaml", ".yml")) else \
+            str((path.parent / sensor_ref).resolve())
+        try:
+            sensor = SensorConfig.load(sensor_path)
+        except ConfigError as e:
+            raise ConfigError(path, "sensor", str(e)) from None
+        assets = d.get("assets")
+        if assets is not None:
+            assets = str((path.parent / Path(assets).expanduser()).resolve())
+        return cls(
+            name=str(d["name"]),
+            seed=_num(d, "seed", path, "", lo=0, hi=2**63 - 1, integer=True, default=0),
+            motions=tuple(resolved), retarget=str(d.get("retarget", "cmu_mb")),
+            labels=str(d.get("labels", "shotton31")), sensor=sensor, assets=assets,
+            poses=poses, avatars=avatars, camera=camera,
+            frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,
+                                  integer=True, default=16),
+            compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
+                                   integer=True, default=3),
+            backend=backend, num_workers=num_workers, source=str(path))

@@ -1,0 +1,49 @@
+"""Error classes. Every error that comes from user input names where it came from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class VhgenError(Exception):
+    """Base class of every error vhgen raises on purpose."""
+
+
+class BVHError(VhgenError):
+    """A BVH file that does not follow the grammar, with the file and line at fault."""
+
+    def __init__(self, path: str | Path | None, line: int | None, message: str):
+        self.path = None if path is None else str(path)
+        self.line = line
+        self.message = message
+        where = self.path or "<string>"
+        if line is not None:
+            where = f"{where}:{line}"
+        super().__init__(f"{where}: {message}")
+
+
+class ConfigError(VhgenError):
+    """A configuration value that is missing, unknown or out of range; names file and field."""
+
+    def __init__(self, source: str | Path | None, field: str, message: str):
+        self.source = None if source is None else str(source)
+        self.field = field
+        self.message = message
+        prefix = f"{self.source}: " if self.source else ""
+        super().__init__(f"{prefix}{field}: {message}")
+
+
+class AssetError(VhgenError):
+    """MakeHuman/MPFB2 assets missing or damaged; says which command fetches them."""
+
+
+class RetargetError(VhgenError):
+    """A skeleton that the retarget map cannot handle (unmapped or missing joints)."""
+
+
+class RenderError(VhgenError):
+    """OpenGL context or rendering failure (backend missing, GL error)."""
+
+
+class StoreError(VhgenError):
+    """A dataset store that does not follow the vhgen contract."""

@@ -1,0 +1,237 @@
+"""Retargeting BVH motion onto the MakeHuman rig.
+
+Method (after Monzani et al.'s intermediate skeleton, reduced to rotations):
+
+1. Both skeletons are put into one *reference pose*: bones listed in the map's
+   ``reference_directions`` are turned, root first, by the smallest rotation that points
+   them along a canonical world direction; other bones keep their rest orientation
+   relative to their parent. This gives world rotations ``S_b`` (source, relative to the
+   BVH zero pose) and ``T_b`` (target, relative to the mesh's rest pose).
+2. Each frame, the target bone's skinning rotation (world, relative to rest) is
+   ``A_b(t) = G_J(t) @ S_b^T @ T_b`` where ``G_J(t)`` is the world rotation of the source
+   joint J mapped to b. A source frame equal to the reference pose gives ``A_b = T_b``; in
+   every frame, a straightened bone points exactly where its source bone points.
+3. Target bones with no source joint carry their parent's rotation. Source joints mapped
+   to null contribute through the world rotations of their mapped descendants, so their
+   rotation is never lost.
+4. The root position is the source root position scaled by the ratio of the target's to
+   the source's root height above its lowest joint (End Sites included) in the reference
+   pose, so feet stay on the floor whatever the two skeletons' proportions.
+
+Poses on the target rig are (F, B, 3, 3) world skinning rotations plus (F, 3) root head
+positions, float64 metres; :func:`local_rotations` gives the parent-relative form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vhgen.body.mesh import Rig
+from vhgen.body.skinning import posed_heads
+from vhgen.errors import ConfigError, RetargetError
+from vhgen.mocap.bvh import Motion
+from vhgen.rotations import min_rotation
+from vhgen.yamlio import check_keys, find_config, load_yaml
+
+
+@dataclass(frozen=True)
+class RetargetMap:
+    """A source dialect's joint map onto a target rig, as declared in ``configs/retarget``."""
+
+    name: str
+    target_rig: str
+    units_m: float
+    joints: dict[str, str | None]
+    reference_directions: dict[str, tuple[float, float, float]]
+    source: str | None = None
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> RetargetMap:
+        path = find_config("retarget", name_or_path)
+        d = load_yaml(path)
+        check_keys(d, {"name", "target_rig", "units_m", "joints", "reference_directions",
+                       "description"},
+                   {"name", "target_rig", "units_m", "joints"}, path, "")
+        units = d["units_m"]
+        if not isinstance(units, (int, float)) or not units > 0:
+            raise ConfigError(path, "units_m", f"must be a positive number, got {units!r}")
+        joints = d["joints"]
+        if not isinstance(joints, dict) or not joints:
+            raise ConfigError(path, "joints", "must be a non-empty mapping source -> target")
+        for k, v in joints.items():
+            if v is not None and not isinstance(v, str):
+                raise ConfigError(path, f"joints.{k}", f"target must be a bone name or null, "
+                                                       f"got {v!r}")
+        refs = {}
+        for k, v in (d.get("reference_directions") or {}).items():
+            arr = np.asarray(v, dtype=np.float64) if isinstance(v, list) else None
+            if arr is None or arr.shape != (3,) or not np.isfinite(arr).all() or \
+                    np.linalg.norm(arr) == 0:
+                raise ConfigError(path, f"reference_directions.{k}",
+                                  f"must be a non-zero [x, y, z], got {v!r}")
+            refs[k] = tuple(float(x) for x in arr)
+        return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=float(units),
+                   joints=dict(joints), reference_directions=refs, source=str(path))
+
+    def check_target(self, rig: Rig) -> None:
+        """Every bone the map names must exist in the rig."""
+        named = {v for v in self.joints.values() if v} | set(self.reference_directions)
+        missing = sorted(named - set(rig.names))
+        if missing:
+            raise ConfigError(self.source, "joints",
+                              f"target bones not in rig {self.target_rig}: {', '.join(missing)}")
+
+
+@dataclass(frozen=True, eq=False)
+class Retargeter:
+    """A map bound to one source skeleton and one fitted target rig."""
+
+    rig: Rig
+    source_index: np.ndarray  # (B,) source joint per target bone, -1 = none
+    source_ref: np.ndarray  # (B, 3, 3) S_b
+    target_ref: np.ndarray  # (B, 3, 3) T_b
+    scale: float  # metres per source unit, corrected for the skeletons' proportions
+    source_root: int
+
+    def apply(self, motion: Motion, frames: np.ndarray | None = None) -> tuple[np.ndarray,
+                                                                              np.ndarray]:
+        """Target poses for ``frames`` (all by default).
+
+        Returns rotations (F, B, 3, 3) world skinning rotations and root (F, 3) position of
+        the root bone's head, float64 metres, in the mesh frame.
+        """
+        g, p = motion.world_transforms()
+        if frames is not None:
+            g, p = g[frames], p[frames]
+        f = g.shape[0]
+        b = len(self.rig.names)
+        out = np.empty((f, b, 3, 3), dtype=np.float64)
+        corr = np.swapaxes(self.source_ref, -1, -2) @ self.target_ref  # S^T T
+        for k in range(b):
+            j = self.source_index[k]
+            if j >= 0:
+                out[:, k] = g[:, j] @ corr[k]
+            else:
+                par = self.rig.parents[k]
+                # no source: keep the rest orientation relative to the parent
+                out[:, k] = out[:, par] if par >= 0 else np.eye(3)
+        root = p[:, self.source_root] * self.scale
+        return out, root
+
+
+def _reference_rotations(parents: np.ndarray, directions: np.ndarray,
+                         canon: dict[int, np.ndarray]) -> np.ndarray:
+    """World rotations putting bone k along canon[k] (parents first), others inherit."""
+    n = len(parents)
+    out = np.empty((n, 3, 3))
+    for k in range(n):
+        par = parents[k]
+        base = out[par] if par >= 0 else np.eye(3)
+        if k in canon:
+            r, ok = min_rotation(base @ directions[k], canon[k])
+            out[k] = (r if ok else np.eye(3)) @ base
+        else:
+            out[k] = base
+    return out
+
+
+def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
+    """Bind ``rmap`` to a parsed source skeleton and a fitted rig; validate the mapping."""
+    rmap.check_target(rig)
+    unknown = [n for n in motion.names if n not in rmap.joints]
+    if unknown:
+        raise RetargetError(
+            f"{motion.source}: joints not in retarget map {rmap.name!r}: {', '.join(unknown)}. "
+            f"Add them to {rmap.source} (map to a target bone, or to null).")
+    src_of: dict[str, int] = {}
+    for j, name in enumerate(motion.names):
+        tgt = rmap.joints[name]
+        if tgt is None:
+            continue
+        if tgt in src_of:
+            raise RetargetError(f"{motion.source}: joints {motion.names[src_of[tgt]]!r} and "
+                                f"{name!r} both map to target bone {tgt!r}")
+        src_of[tgt] = j
+    root_name = rig.names[int(np.flatnonzero(rig.parents < 0)[0])]
+    if root_name not in src_of:
+        raise RetargetError(f"{motion.source}: no source joint maps to the root bone "
+                            f"{root_name!r}")
+    b = len(rig.names)
+    source_index = np.array([src_of.get(n, -1) for n in rig.names], dtype=np.int64)
+
+    # rest directions. Target: head -> tail. Source: joint -> the source joint of the target
+    # bone whose head sits at this bone's tail (a descendant), else the End Site.
+    rest = motion.rest_positions()
+    tgt_dir = rig.tails - rig.heads
+    src_dir = np.zeros((b, 3))
+    ancestors = _ancestor_sets(motion.parents)
+    for k in range(b):
+        j = source_index[k]
+        if j < 0:
+            continue
+        dist = np.linalg.norm(rig.heads - rig.tails[k], axis=1)
+        for c in np.flatnonzero(dist < 1e-6):
+            jc = source_index[c]
+            if jc >= 0 and j in ancestors[jc] and np.linalg.norm(rest[jc] - rest[j]) > 1e-9:
+                src_dir[k] = rest[jc] - rest[j]
+                break
+        else:
+            if np.isfinite(motion.end_sites[j]).all():
+                src_dir[k] = motion.end_sites[j]
+    canon = {rig.index(n): np.asarray(v, float) for n, v in rmap.reference_directions.items()}
+    # a source bone's direction is expressed in its joint's frame; at rest that is world
+    source_ref = _reference_rotations(rig.parents, src_dir, canon)
+    target_ref = _reference_rotations(rig.parents, tgt_dir, canon)
+
+    # root height above the lowest joint in the reference pose, both skeletons
+    src_world = np.empty((motion.num_joints, 3, 3))
+    for j, par in enumerate(motion.parents):
+        k = np.flatnonzero(source_index == j)
+        src_world[j] = source_ref[k[0]] if len(k) else (src_world[par] if par >= 0 else np.eye(3))
+    src_pos = np.empty((motion.num_joints, 3))
+    for j, par in enumerate(motion.parents):
+        src_pos[j] = 0.0 if par < 0 else src_pos[par] + src_world[par] @ motion.offsets[j]
+    ends = np.isfinite(motion.end_sites).all(axis=1)
+    src_low = min(src_pos[:, 1].min(), (src_pos[ends] + np.einsum(
+        "jab,jb->ja", src_world[ends], motion.end_sites[ends]))[:, 1].min(initial=np.inf))
+    src_drop = src_pos[motion.parents < 0][0, 1] - src_low
+    tgt_heads = posed_heads(rig, target_ref, rig.heads[rig.parents < 0][0])
+    tgt_tails = tgt_heads + np.einsum("bij,bj->bi", target_ref, tgt_dir)
+    tgt_drop = tgt_heads[rig.parents < 0][0, 1] - min(tgt_heads[:, 1].min(), tgt_tails[:, 1].min())
+    if src_drop <= 1e-9 or tgt_drop <= 1e-9:
+        raise RetargetError(f"{motion.source}: the root is the lowest joint in the reference "
+                            "pose; cannot scale the root translation")
+    scale = tgt_drop / src_drop
+    return Retargeter(rig=rig, source_index=source_index, source_ref=source_ref,
+                      target_ref=target_ref, scale=float(scale),
+                      source_root=int(source_index[rig.index(root_name)]))
+
+
+def _ancestor_sets(parents: np.ndarray) -> list[set[int]]:
+    out: list[set[int]] = []
+    for p in parents:
+        out.append(set() if p < 0 else out[p] | {int(p)})
+    return out
+
+
+def local_rotations(rig: Rig, world: np.ndarray) -> np.ndarray:
+    """Parent-relative rotations A_parent^T A_b (world-aligned, root keeps its world value)."""
+    world = np.asarray(world, np.float64)
+    out = world.copy()
+    for k, par in enumerate(rig.parents):
+        if par >= 0:
+            out[..., k, :, :] = np.swapaxes(world[..., par, :, :], -1, -2) @ world[..., k, :, :]
+    return out
+
+
+def world_rotations(rig: Rig, local: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`local_rotations`."""
+    local = np.asarray(local, np.float64)
+    out = local.copy()
+    for k, par in enumerate(rig.parents):
+        if par >= 0:
+            out[..., k, :, :] = out[..., par, :, :] @ local[..., k, :, :]
+    return out

@@ -1,0 +1,145 @@
+"""Frame generation inside one process: body, skinning, rendering, sensor, shard write.
+
+:class:`FrameGenerator` owns one GL context (created once, in ``__init__``) and is what a
+Ray actor wraps; it is also used directly by tests and benchmarks without Ray.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from vhgen.body.labels import LabelScheme
+from vhgen.body.model import Body, build_body
+from vhgen.body.skinning import bone_matrices, posed_heads
+from vhgen.camera import look_at
+from vhgen.config import JobConfig
+from vhgen.sensor.kinect import depth_to_mm, simulate
+from vhgen.store.manifest import write_part
+from vhgen.store.zarr_store import write_shard
+
+log = logging.getLogger(__name__)
+
+
+def sample_camera(rng: np.random.Generator, cfg) -> dict:
+    """Camera placement around the subject's root (first draws of the frame's stream)."""
+    yaw = rng.uniform(*cfg.yaw_deg)
+    dist = rng.uniform(*cfg.distance_m)
+    height = rng.uniform(*cfg.height_m)
+    target_h = rng.uniform(*cfg.look_at_height_m)
+    a = np.deg2rad(yaw)
+    eye = np.array([dist * np.sin(a), height, dist * np.cos(a)])
+    w2c = look_at(eye, np.array([0.0, target_h, 0.0]))
+    return {"yaw_deg": float(yaw), "distance_m": float(dist), "height_m": float(height),
+            "world_to_camera": w2c}
+
+
+class FrameGenerator:
+    """Renders frames of one job. Heavy setup once; ``run_task`` per shard."""
+
+    def __init__(self, cfg: JobConfig, asset_dir: str | Path, pose_rotations: np.ndarray,
+                 pose_roots: np.ndarray, pose_meta: dict, plan_arrays: dict, avatars: list[dict],
+                 context=None):
+        from vhgen.render.context import create_context
+        from vhgen.render.renderer import DepthLabelRenderer
+
+        self.cfg = cfg
+        self.asset_dir = Path(asset_dir)
+        self.rotations = pose_rotations
+        self.roots = pose_roots
+        self.pose_meta = pose_meta
+        self.plan = plan_arrays
+        self.avatars = avatars
+        self.scheme = LabelScheme.load(cfg.labels)
+        self.ctx = context if context is not None else create_context(cfg.backend)
+        self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
+        self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
+                                           near=cfg.camera.near_m, far=cfg.camera.far_m)
+        self._avatar: tuple[int, Body] | None = None
+        self._sensor_json_base = cfg.sensor.to_dict()
+
+    def _body(self, avatar_id: int) -> Body:
+        """The avatar's body, uploaded to the GPU (one avatar resident at a time)."""
+        if self._avatar is None or self._avatar[0] != avatar_id:
+            params = self.avatars[avatar_id]
+            body = build_body(self.asset_dir, self.scheme, scale=params["scale"])
+            self.renderer.set_mesh(body.vertices, body.faces, body.joints, body.weights,
+                                   body.face_labels, body.num_bones)
+            self._avatar = (avatar_id, body)
+        return self._avatar[1]
+
+    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict]:
+        """depth (H, W) uint16 mm, labels (H, W) uint8, and the frame's manifest row."""
+        avatar_id = int(self.plan["avatar_id"][frame])
+        pose = int(self.plan["pose_index"][frame])
+        seed = int(self.plan["seeds"][frame])
+        rng = np.random.default_rng(seed)
+        body = self._body(avatar_id)
+        scale = self.avatars[avatar_id]["scale"]
+        rot = self.rotations[pose]
+        root = self.roots[pose] * scale
+        # place the subject's root above the world origin; keep height and orientation
+        offset = np.array([-root[0], 0.0, -root[2]])
+        root = root + offset
+        mats = bone_matrices(body.rig, rot, root)
+        cam = sample_camera(rng, self.cfg.camera)
+        w2c = cam["world_to_camera"]
+        depth_f, labels = self.renderer.render(w2c @ mats)
+        s = self.cfg.sensor
+        z, valid = simulate(depth_f, focal_px=s.intrinsics.fx, baseline_m=s.baseline_m,
+                            z_min=s.z_min_m, z_max=s.z_max_m,
+                            disparity_noise_px=s.disparity_noise_px, subpixel=s.subpixel_px,
+                            rng=rng)
+        depth_mm = depth_to_mm(z, valid)
+        heads = posed_heads(body.rig, rot, root)
+        joints_cam = (heads @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
+        effects = ["planar_depth", "range_gating"]
+        if s.disparity_noise_px > 0:
+            effects.append("disparity_noise")
+        if s.subpixel_px > 0:
+            effects.append("disparity_quantisation")
+        effects.append("uint16_mm")
+        mid = int(self.pose_meta["motion_id"][pose])
+        intr = s.intrinsics
+        row = {
+            "frame": frame, "shard": -1,
+            "motion_file": self.pose_meta["motion_files"][mid],
+            "motion_sha1": self.pose_meta["motion_sha1"][mid],
+            "source_frame": int(self.pose_meta["source_frame"][pose]),
+            "pose_index": pose, "avatar_id": avatar_id,
+            "avatar_params": json.dumps({**self.avatars[avatar_id], **body.params},
+                                        sort_keys=True),
+            "width": intr.width, "height": intr.height, "fx": intr.fx, "fy": intr.fy,
+            "cx": intr.cx, "cy": intr.cy,
+            "world_to_camera": w2c.reshape(-1).tolist(),
+            "camera_distance_m": cam["distance_m"], "camera_yaw_deg": cam["yaw_deg"],
+            "camera_height_m": cam["height_m"],
+            "body_offset": offset.tolist(),
+            "joints_cam": joints_cam.reshape(-1).tolist(),
+            "seed": seed,
+            "sensor": json.dumps({**self._sensor_json_base, "effects": effects}, sort_keys=True),
+            "valid_pixels": int(valid.sum()), "body_pixels": int((labels > 0).sum()),
+        }
+        return depth_mm, labels, row
+
+    def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
+        """Render frames [start, stop), write shard ``shard`` and its manifest part."""
+        h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
+        depth = np.zeros((stop - start, h, w), np.uint16)
+        labels = np.zeros((stop - start, h, w), np.uint8)
+        rows = []
+        for i, f in enumerate(range(start, stop)):
+            depth[i], labels[i], row = self.render_frame(f)
+            row["shard"] = shard
+            rows.append(row)
+        write_shard(store, shard, self.cfg.frames_per_shard, depth, labels)
+        num_joints = len(rows[0]["joints_cam"]) // 3
+        write_part(store, shard, rows, num_joints)
+        return {"shard": shard, "frames": stop - start, "renderer": self.renderer_info,
+                "valid_pixels": int(sum(r["valid_pixels"] for r in rows))}
+
+    def close(self) -> None:
+        self.renderer.release()

@@ -1,0 +1,77 @@
+"""Contact sheets: depth colour-mapped beside labels in the scheme's palette, with a legend."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vhgen.store.zarr_store import open_store
+
+# Turbo colour map (Mikhailov 2019), polynomial approximation by the author, public domain
+_TURBO_R = (0.13572138, 4.61539260, -42.66032258, 132.13108234, -152.94239396, 59.28637943)
+_TURBO_G = (0.09140261, 2.19418839, 4.84296658, -14.18503333, 4.27729857, 2.82956604)
+_TURBO_B = (0.10667330, 12.64194608, -60.58204836, 110.36276771, -89.90310912, 27.34824973)
+
+
+def turbo(x: np.ndarray) -> np.ndarray:
+    """Values in [0, 1] -> (..., 3) uint8 RGB."""
+    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+    out = []
+    for c in (_TURBO_R, _TURBO_G, _TURBO_B):
+        out.append(sum(k * x ** i for i, k in enumerate(c)))
+    return (np.clip(np.stack(out, -1), 0, 1) * 255 + 0.5).astype(np.uint8)
+
+
+def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
+    """uint16 mm -> RGB; near = red, far = blue, no measurement = black."""
+    valid = depth_mm > 0
+    rgb = np.zeros(depth_mm.shape + (3,), np.uint8)
+    if valid.any():
+        lo, hi = np.percentile(depth_mm[valid], [1, 99])
+        x = (depth_mm.astype(np.float64) - lo) / max(hi - lo, 1.0)
+        rgb[valid] = turbo(1.0 - x[valid])
+    return rgb
+
+
+def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
+                  frames: list[int] | None = None, scale: float = 0.5) -> Path:
+    """Write a PNG with up to ``num_frames`` evenly spaced frames (depth | labels) + legend."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    root = open_store(store)
+    depth, labels = root["depth"], root["labels"]
+    names = list(root.attrs["label_names"])
+    palette = np.asarray(root.attrs["label_colors"], dtype=np.uint8)
+    n = depth.shape[0]
+    if frames is None:
+        frames = sorted(set(np.linspace(0, n - 1, min(num_frames, n)).round().astype(int)))
+    h, w = depth.shape[1:]
+    th, tw = int(h * scale), int(w * scale)
+    cols = 2
+    rows = len(frames)
+    legend_w = 190
+    sheet = Image.new("RGB", (cols * tw + legend_w, max(rows * (th + 16), 14 * len(names) + 40)),
+                      (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    font = ImageFont.load_default()
+    for r, f in enumerate(frames):
+        d = np.asarray(depth[f])
+        lab = np.asarray(labels[f])
+        tiles = [colorize_depth(d), palette[np.minimum(lab, len(palette) - 1)]]
+        y = r * (th + 16)
+        draw.text((4, y + 2), f"frame {f}: depth (mm)", fill=(0, 0, 0), font=font)
+        draw.text((tw + 4, y + 2), f"frame {f}: labels", fill=(0, 0, 0), font=font)
+        for c, tile in enumerate(tiles):
+            img = Image.fromarray(tile).resize((tw, th), Image.NEAREST)
+            sheet.paste(img, (c * tw, y + 14))
+    x0 = cols * tw + 8
+    draw.text((x0, 4), "labels (subject's L/R)", fill=(0, 0, 0), font=font)
+    for k, name in enumerate(names, start=1):
+        y = 20 + (k - 1) * 14
+        draw.rectangle([x0, y, x0 + 12, y + 10], fill=tuple(int(c) for c in palette[k]))
+        draw.text((x0 + 18, y - 1), f"{k:2d} {name}", fill=(0, 0, 0), font=font)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(out)
+    return out

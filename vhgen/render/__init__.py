@@ -1,0 +1,1 @@
+"""OpenGL rendering (imports moderngl lazily; nothing here is imported by ``import vhgen``)."""

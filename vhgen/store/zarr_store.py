@@ -1,0 +1,103 @@
+"""The dataset store: a Zarr v3 group plus a Parquet manifest.
+
+Contract (later work may add arrays and columns, never change these):
+
+* ``depth``  (N, H, W) uint16 millimetres, 0 = no measurement;
+* ``labels`` (N, H, W) uint8, 0 = background, 1..K = body parts; the group attributes
+  ``label_names`` (K names, label k = names[k-1]) and ``label_colors`` ((K+1) x RGB,
+  row 0 background) describe them;
+* ``manifest.parquet`` inside the group folder, one row per frame (see
+  :mod:`vhgen.store.manifest`).
+
+Each array is sharded along frames: one shard holds ``frames_per_shard`` frames (one
+chunk per frame inside), and exactly one task writes each shard, whole, once. A shard is
+complete when its manifest part ``manifest/part-<shard>.parquet`` exists (written after
+the arrays), which is what resuming checks.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from vhgen.errors import StoreError
+
+CONTRACT_VERSION = 1
+MANIFEST_PARTS = "manifest"
+MANIFEST_FILE = "manifest.parquet"
+
+
+def _codecs(level: int):
+    from zarr.codecs import ZstdCodec
+
+    return [ZstdCodec(level=level)]
+
+
+def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
+                 frames_per_shard: int, compression_level: int, attrs: dict,
+                 overwrite: bool = False) -> None:
+    """Create the group and its empty arrays (driver only, before any worker writes)."""
+    import zarr
+
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise StoreError(f"{path} exists; pass overwrite (or resume) to reuse it")
+    root = zarr.open_group(str(path), mode="w", zarr_format=3)
+    for name, dtype in (("depth", "uint16"), ("labels", "uint8")):
+        root.create_array(name, shape=(num_frames, height, width), dtype=dtype,
+                          chunks=(1, height, width),
+                          shards=(frames_per_shard, height, width),
+                          compressors=_codecs(compression_level), fill_value=0,
+                          dimension_names=("frame", "y", "x"))
+    root.attrs.update({**attrs, "vhgen_contract": CONTRACT_VERSION})
+    (path / MANIFEST_PARTS).mkdir(exist_ok=True)
+
+
+def open_store(path: str | Path, mode: str = "r"):
+    import zarr
+
+    path = Path(path)
+    if not (path / "zarr.json").is_file():
+        raise StoreError(f"{path} is not a Zarr v3 group (no zarr.json)")
+    return zarr.open_group(str(path), mode=mode, zarr_format=3)
+
+
+def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.ndarray,
+                labels: np.ndarray) -> None:
+    """Write one whole shard of both arrays (the only writer of this shard)."""
+    root = open_store(path, mode="r+")
+    start = shard * frames_per_shard
+    n = depth.shape[0]
+    if labels.shape != depth.shape:
+        raise StoreError(f"shard {shard}: depth {depth.shape} vs labels {labels.shape}")
+    if depth.dtype != np.uint16 or labels.dtype != np.uint8:
+        raise StoreError(f"shard {shard}: dtypes {depth.dtype}/{labels.dtype}, "
+                         "expected uint16/uint8")
+    root["depth"][start:start + n] = depth
+    root["labels"][start:start + n] = labels
+
+
+def completed_shards(path: str | Path) -> set[int]:
+    """Shards whose manifest part exists (their arrays were written before it)."""
+    parts = Path(path) / MANIFEST_PARTS
+    if not parts.is_dir():
+        return set()
+    return {int(p.stem.split("-")[1]) for p in parts.glob("part-*.parquet")}
+
+
+def clean_partials(path: str | Path) -> int:
+    """Remove temp files a killed writer left behind; returns how many."""
+    n = 0
+    for p in Path(path).rglob("*.partial"):
+        p.unlink()
+        n += 1
+    for p in (Path(path) / MANIFEST_PARTS).glob("*.tmp"):
+        p.unlink()
+        n += 1
+    return n
+
+
+def read_attrs(path: str | Path) -> dict:
+    return json.loads(json.dumps(dict(open_store(path).attrs)))
