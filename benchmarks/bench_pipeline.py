@@ -42,7 +42,7 @@ def main() -> None:
     from vhgen.mocap.retarget import RetargetMap
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.plan import make_plan
-    from vhgen.pipeline.poses import expand_motion_paths, load_poses
+    from vhgen.pipeline.poses import load_poses
     from vhgen.sensor.kinect import depth_to_mm, simulate
     from vhgen.store.manifest import write_part
     from vhgen.store.zarr_store import create_store, write_shard
