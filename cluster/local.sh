@@ -5,7 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export RAY_AUTH_MODE=disabled   # Ray 2.60's `ray start` enables token auth otherwise
-.venv/bin/ray start --head --num-cpus "${NUM_CPUS:-2}" --disable-usage-stats
-trap '.venv/bin/ray stop' EXIT
-.venv/bin/ray job submit --working-dir . -- \
+# the job's `python` is looked up on the PATH the head was started with: put the venv first
+export PATH="$PWD/.venv/bin:$PATH"
+ray start --head --num-cpus "${NUM_CPUS:-2}" --disable-usage-stats >/dev/null
+trap 'ray stop >/dev/null' EXIT
+ray job submit --working-dir . -- \
   python jobs/generate.py configs/scenes/default.yaml --out "$PWD/out/cluster.zarr" --overwrite

@@ -27,21 +27,23 @@ def builtin_motion_path() -> Path:
     return Path(str(resources.files("vhgen").joinpath("data", "demo_cmu_mb.bvh")))
 
 
-def expand_motion_paths(specs: tuple[str, ...] | list[str]) -> list[Path]:
-    """Files and folders (searched recursively for *.bvh, case-insensitive), sorted."""
-    out: list[Path] = []
+def expand_motion_paths(specs: tuple[str, ...] | list[str]) -> list[tuple[str, Path]]:
+    """(name, path) of every motion file: folders are searched recursively for *.bvh
+    (case-insensitive) and sorted. The name is the path, or ``builtin:demo`` for the
+    package's demo clip (so manifests do not depend on where vhgen is installed)."""
+    out: list[tuple[str, Path]] = []
     for s in specs:
         if s == BUILTIN_MOTION:
-            out.append(builtin_motion_path())
+            out.append((BUILTIN_MOTION, builtin_motion_path()))
             continue
         p = Path(s)
         if p.is_dir():
             found = sorted(q for q in p.rglob("*") if q.suffix.lower() == ".bvh" and q.is_file())
             if not found:
                 raise ConfigError(None, "motions", f"folder {p} holds no .bvh files")
-            out.extend(found)
+            out.extend((str(q), q) for q in found)
         elif p.is_file():
-            out.append(p)
+            out.append((str(p), p))
         else:
             raise ConfigError(None, "motions", f"{p} does not exist")
     return out
@@ -92,8 +94,8 @@ def ground_offset(rig: Rig, rotations: np.ndarray, roots: np.ndarray) -> float:
 def load_poses(specs, rig: Rig, rmap: RetargetMap, cfg: PosesConfig) -> PoseSet:
     """Read every motion, retarget onto ``rig`` and keep the selected frames."""
     rots, roots, mids, frames, files, shas, report = [], [], [], [], [], [], []
-    for path in expand_motion_paths(specs):
-        entry = {"file": str(path), "status": "ok", "frames": 0, "poses": 0, "error": ""}
+    for name, path in expand_motion_paths(specs):
+        entry = {"file": name, "status": "ok", "frames": 0, "poses": 0, "error": ""}
         report.append(entry)
         try:
             motion = read_bvh(path)
@@ -111,7 +113,7 @@ def load_poses(specs, rig: Rig, rmap: RetargetMap, cfg: PosesConfig) -> PoseSet:
             entry.update(status="skipped", error="no frame selected")
             continue
         mid = len(files)
-        files.append(str(path))
+        files.append(name)
         shas.append(hashlib.sha1(path.read_bytes()).hexdigest())
         rots.append(r_all[sel])
         roots.append(p_all[sel])
