@@ -39,7 +39,7 @@ def main() -> None:
     from vhgen.body.labels import LabelScheme
     from vhgen.body.model import build_body
     from vhgen.config import JobConfig
-    from vhgen.mocap.retarget import RetargetMap
+    from vhgen.mocap.retarget import RetargetMap, load_all_maps
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.plan import make_plan
     from vhgen.pipeline.poses import load_poses
@@ -56,7 +56,8 @@ def main() -> None:
     t_body = time.perf_counter() - t
 
     t = time.perf_counter()
-    poses = load_poses(cfg.motions, body.rig, RetargetMap.load(cfg.retarget), cfg.poses)
+    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
+    poses = load_poses(cfg.motions, body.rig, rmap, cfg.poses)
     t_read = time.perf_counter() - t
     n_src = sum(r["frames"] for r in poses.report)
     rows.append(("read (per source frame)", n_src, t_read))

@@ -34,6 +34,26 @@ def _cmd_generate(args) -> int:
     return 0
 
 
+def _cmd_corpus_build(args) -> int:
+    from vhgen.mocap.corpus import DEFAULT_EXCLUDE, SparsifySettings, build_corpus
+    from vhgen.mocap.units import parse_units
+
+    settings = SparsifySettings(
+        metric=args.metric, min_angle_deg=args.min_angle_deg,
+        min_distance_m=args.min_distance_m,
+        exclude=() if args.include_fingers else DEFAULT_EXCLUDE,
+        keep_heading=args.keep_heading, frame_step=args.frame_step,
+        allow_truncated=args.allow_truncated)
+    summary = build_corpus(args.inputs, args.output, settings=settings, asset_dir=args.assets,
+                           report=args.report, workers=args.workers,
+                           units_m=parse_units(args.units, None, "--units"), strict=args.strict)
+    for f in summary["failed"]:
+        print(f"skipped {f['file']}: {f['error']}", file=sys.stderr)
+    print(f"{summary['ok']}/{summary['files']} files, {summary['poses_read']} poses read, "
+          f"{summary['poses_kept']} kept -> {summary['table']}")
+    return 0
+
+
 def _cmd_preview(args) -> int:
     from vhgen.preview import contact_sheet
 
@@ -77,6 +97,34 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--resume", action="store_true", help="finish an interrupted run")
     g.add_argument("--overwrite", action="store_true", help="replace an existing output")
     g.set_defaults(func=_cmd_generate)
+
+    c = sub.add_parser("corpus", help="motion corpora")
+    csub = c.add_subparsers(dest="corpus_cmd", required=True)
+    b = csub.add_parser("build", help="BVH files/folders -> retargeted, sparsified pose table")
+    b.add_argument("inputs", nargs="+", help="BVH files or folders (searched recursively)")
+    b.add_argument("-o", "--output", required=True, help="pose table (.parquet)")
+    b.add_argument("--min-angle-deg", type=float, default=5.0,
+                   help="keep a pose only if some joint differs by at least this angle "
+                        "from every kept pose (default 5)")
+    b.add_argument("--metric", choices=["angle", "position"], default="angle",
+                   help="angle: max joint rotation angle; position: max joint distance "
+                        "(Shotton et al.)")
+    b.add_argument("--min-distance-m", type=float, default=0.05,
+                   help="threshold of the position metric (default 0.05 m)")
+    b.add_argument("--frame-step", type=int, default=1, help="read every n-th frame")
+    b.add_argument("--keep-heading", action="store_true",
+                   help="treat the same pose facing another way as different")
+    b.add_argument("--include-fingers", action="store_true",
+                   help="let finger and thumb rotations count in the distance")
+    b.add_argument("--units", default=None,
+                   help="override file units: m, cm, mm, inch, cmu or metres per unit")
+    b.add_argument("--report", help="JSON report: every file, status, frames, poses kept, error")
+    b.add_argument("--workers", type=int, help="parallel file readers (default: all cores)")
+    b.add_argument("--assets", help="MPFB2 asset folder (default: the fetched cache)")
+    b.add_argument("--strict", action="store_true", help="fail if any file fails")
+    b.add_argument("--allow-truncated", action="store_true",
+                   help="keep the complete rows of files with fewer rows than 'Frames:'")
+    b.set_defaults(func=_cmd_corpus_build)
 
     v = sub.add_parser("preview", help="contact sheet PNG of a dataset")
     v.add_argument("store")

@@ -203,7 +203,7 @@ class JobConfig:
         return cls(
             name=str(d["name"]),
             seed=_num(d, "seed", path, "", lo=0, hi=2**63 - 1, integer=True, default=0),
-            motions=tuple(resolved), retarget=str(d.get("retarget", "cmu_mb")),
+            motions=tuple(resolved), retarget=str(d.get("retarget", "auto")),
             labels=str(d.get("labels", "shotton31")), sensor=sensor, assets=assets,
             poses=poses, avatars=avatars, camera=camera,
             frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,

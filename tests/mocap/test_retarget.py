@@ -79,9 +79,9 @@ def test_unknown_dialect_names_unmapped_joints(shared_mocap, body, cmu_map):
 
 def test_map_config_errors_name_the_field(tmp_path):
     p = tmp_path / "bad.yaml"
-    p.write_text("name: x\ntarget_rig: cmu_mb\nunits_m: 1\njoints: {Hips: Hips}\nbogus: 1\n")
+    p.write_text("name: x\ntarget_rig: cmu_mb\nunits: m\njoints: {Hips: Hips}\nbogus: 1\n")
     with pytest.raises(ConfigError, match="bogus: unknown key"):
         RetargetMap.load(p)
-    p.write_text("name: x\ntarget_rig: cmu_mb\nunits_m: -1\njoints: {Hips: Hips}\n")
-    with pytest.raises(ConfigError, match="units_m"):
+    p.write_text("name: x\ntarget_rig: cmu_mb\nunits: furlong\njoints: {Hips: Hips}\n")
+    with pytest.raises(ConfigError, match="units"):
         RetargetMap.load(p)

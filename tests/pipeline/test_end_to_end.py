@@ -124,3 +124,27 @@ def test_preview_sheet(smoke, tmp_path):
     img = np.asarray(Image.open(out))
     assert img.shape[0] >= 3 * 240 and img.shape[1] >= 640
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 40  # depth ramp + part colours
+
+
+def test_generate_from_pose_table(tmp_path, shared_mocap, asset_dir):
+    """`vhgen corpus build` output feeds the generate job instead of raw BVH."""
+    import pyarrow.parquet as pq
+
+    from vhgen.mocap.corpus import SparsifySettings, build_corpus
+    from vhgen.mocap.posetable import read_pose_table
+
+    table_path = tmp_path / "poses.parquet"
+    build_corpus([str(shared_mocap / "02_02.bvh"), str(shared_mocap / "10_01.bvh")], table_path,
+                 settings=SparsifySettings(min_angle_deg=40.0), workers=1)
+    table = read_pose_table(table_path)
+    assert 2 <= table.num_poses <= 40
+    cfg_path = tmp_path / "t.yaml"
+    cfg_path.write_text(f"name: t\nmotions: [{table_path}]\navatars: {{count: 1}}\n"
+                        "output: {frames_per_shard: 8}\nrender: {backend: osmesa}\n"
+                        "num_workers: 2\n")
+    summary = run_job(JobConfig.load(cfg_path), tmp_path / "t.zarr")
+    assert summary["frames"] == table.num_poses
+    man = pq.read_table(tmp_path / "t.zarr" / "manifest.parquet")
+    assert man.column("motion_file").to_pylist() == table.source_file
+    assert man.column("source_frame").to_pylist() == table.source_frame.tolist()
+    assert min(man.column("body_pixels").to_pylist()) > 5000

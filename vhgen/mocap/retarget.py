@@ -33,8 +33,9 @@ from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
 from vhgen.errors import ConfigError, RetargetError
 from vhgen.mocap.bvh import Motion
+from vhgen.mocap.units import detect_units, parse_units, skeleton_height
 from vhgen.rotations import min_rotation
-from vhgen.yamlio import check_keys, find_config, load_yaml
+from vhgen.yamlio import check_keys, configs_dir, find_config, load_yaml
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ class RetargetMap:
 
     name: str
     target_rig: str
-    units_m: float
+    units_m: float | None  # metres per file unit; None = detect from the skeleton size
     joints: dict[str, str | None]
     reference_directions: dict[str, tuple[float, float, float]]
     source: str | None = None
@@ -52,12 +53,10 @@ class RetargetMap:
     def load(cls, name_or_path: str | Path) -> RetargetMap:
         path = find_config("retarget", name_or_path)
         d = load_yaml(path)
-        check_keys(d, {"name", "target_rig", "units_m", "joints", "reference_directions",
+        check_keys(d, {"name", "target_rig", "units", "joints", "reference_directions",
                        "description"},
-                   {"name", "target_rig", "units_m", "joints"}, path, "")
-        units = d["units_m"]
-        if not isinstance(units, (int, float)) or not units > 0:
-            raise ConfigError(path, "units_m", f"must be a positive number, got {units!r}")
+                   {"name", "target_rig", "joints"}, path, "")
+        units = parse_units(d.get("units", "auto"), path, "units")
         joints = d["joints"]
         if not isinstance(joints, dict) or not joints:
             raise ConfigError(path, "joints", "must be a non-empty mapping source -> target")
@@ -73,7 +72,7 @@ class RetargetMap:
                 raise ConfigError(path, f"reference_directions.{k}",
                                   f"must be a non-zero [x, y, z], got {v!r}")
             refs[k] = tuple(float(x) for x in arr)
-        return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=float(units),
+        return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=units,
                    joints=dict(joints), reference_directions=refs, source=str(path))
 
     def check_target(self, rig: Rig) -> None:
@@ -83,6 +82,35 @@ class RetargetMap:
         if missing:
             raise ConfigError(self.source, "joints",
                               f"target bones not in rig {self.target_rig}: {', '.join(missing)}")
+
+
+def load_all_maps(folder: str | Path | None = None) -> list[RetargetMap]:
+    """Every map in ``configs/retarget`` (or ``folder``), sorted by name."""
+    folder = Path(folder) if folder is not None else configs_dir() / "retarget"
+    return [RetargetMap.load(p) for p in sorted(folder.glob("*.yaml"))]
+
+
+def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
+    """The map that knows every joint of ``motion`` and maps most of them.
+
+    Raises RetargetError naming the joints the nearest map lacks when none fits.
+    """
+    best, best_key, best_unknown = None, None, None
+    for m in maps:
+        unknown = [n for n in motion.names if n not in m.joints]
+        mapped = sum(1 for n in motion.names if m.joints.get(n))
+        key = (len(unknown), -mapped)
+        if best_key is None or key < best_key:
+            best, best_key, best_unknown = m, key, unknown
+    if best is None:
+        raise RetargetError("no retarget maps to choose from")
+    if best_unknown:
+        raise RetargetError(
+            f"{motion.source}: unknown skeleton ({motion.num_joints} joints, root "
+            f"{motion.names[0]!r}); the nearest map {best.name!r} ({best.source}) lacks "
+            f"{len(best_unknown)} joints: {', '.join(best_unknown)}. Add a map to "
+            "configs/retarget/ (see the README).")
+    return best
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +123,9 @@ class Retargeter:
     target_ref: np.ndarray  # (B, 3, 3) T_b
     scale: float  # metres per source unit, corrected for the skeletons' proportions
     source_root: int
+    dialect: str
+    units_m: float  # metres per file unit (declared by the map or detected)
+    units_detected: bool
 
     def apply(self, motion: Motion, frames: np.ndarray | None = None) -> tuple[np.ndarray,
                                                                               np.ndarray]:
@@ -205,9 +236,15 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
         raise RetargetError(f"{motion.source}: the root is the lowest joint in the reference "
                             "pose; cannot scale the root translation")
     scale = tgt_drop / src_drop
+    units_m, detected = rmap.units_m, False
+    if units_m is None:
+        ends_world = rest + np.where(np.isfinite(motion.end_sites), motion.end_sites, np.nan)
+        _, units_m = detect_units(skeleton_height(rest, ends_world))
+        detected = True
     return Retargeter(rig=rig, source_index=source_index, source_ref=source_ref,
                       target_ref=target_ref, scale=float(scale),
-                      source_root=int(source_index[rig.index(root_name)]))
+                      source_root=int(source_index[rig.index(root_name)]), dialect=rmap.name,
+                      units_m=float(units_m), units_detected=detected)
 
 
 def _ancestor_sets(parents: np.ndarray) -> list[set[int]]:

@@ -22,7 +22,7 @@ from vhgen.body.labels import LabelScheme
 from vhgen.body.model import build_body
 from vhgen.config import JobConfig
 from vhgen.errors import StoreError, VhgenError
-from vhgen.mocap.retarget import RetargetMap
+from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import make_plan
 from vhgen.pipeline.poses import load_poses
 from vhgen.store.manifest import merge_parts
@@ -88,7 +88,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     out = Path(out)
     asset_dir = resolve_asset_dir(cfg.assets)
     scheme = LabelScheme.load(cfg.labels)
-    rmap = RetargetMap.load(cfg.retarget)
+    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
     base = build_body(asset_dir, scheme)
     poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
     plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)

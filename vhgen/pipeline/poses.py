@@ -18,7 +18,8 @@ from vhgen.body.skinning import posed_heads
 from vhgen.config import BUILTIN_MOTION, PosesConfig
 from vhgen.errors import ConfigError, VhgenError
 from vhgen.mocap.bvh import read_bvh
-from vhgen.mocap.retarget import RetargetMap, build_retargeter
+from vhgen.mocap.posetable import read_pose_table
+from vhgen.mocap.retarget import RetargetMap, build_retargeter, detect_dialect, world_rotations
 
 log = logging.getLogger(__name__)
 
@@ -91,16 +92,46 @@ def ground_offset(rig: Rig, rotations: np.ndarray, roots: np.ndarray) -> float:
     return float(rest_low - np.percentile(low, 5))
 
 
-def load_poses(specs, rig: Rig, rmap: RetargetMap, cfg: PosesConfig) -> PoseSet:
-    """Read every motion, retarget onto ``rig`` and keep the selected frames."""
+def load_poses(specs, rig: Rig, rmap: RetargetMap | list[RetargetMap],
+               cfg: PosesConfig) -> PoseSet:
+    """Read every motion, retarget onto ``rig`` and keep the selected frames.
+
+    ``rmap`` is one map, or a list of maps to pick from per file (dialect detection).
+    """
     rots, roots, mids, frames, files, shas, report = [], [], [], [], [], [], []
     for name, path in expand_motion_paths(specs):
-        entry = {"file": name, "status": "ok", "frames": 0, "poses": 0, "error": ""}
+        entry = {"file": name, "status": "ok", "frames": 0, "poses": 0, "dialect": "",
+                 "error": ""}
         report.append(entry)
+        if path.suffix.lower() == ".parquet":
+            # a pose table from `vhgen corpus build`: already retargeted and sparsified
+            try:
+                table = read_pose_table(path)
+            except VhgenError as e:
+                entry.update(status="skipped", error=str(e))
+                log.warning("skipping %s: %s", path, e)
+                continue
+            if table.bones != list(rig.names):
+                entry.update(status="skipped", error=f"pose table rig {table.rig} has other "
+                                                     "bones than the job's rig")
+                continue
+            sha = hashlib.sha1(path.read_bytes()).hexdigest()
+            for src in dict.fromkeys(table.source_file):
+                rows = np.flatnonzero(np.asarray(table.source_file) == src)
+                files.append(src)
+                shas.append(sha)
+                rots.append(world_rotations(rig, table.local_rotations[rows]))
+                roots.append(table.root_translation[rows])
+                mids.append(np.full(len(rows), len(files) - 1, dtype=np.int32))
+                frames.append(table.source_frame[rows])
+            entry.update(frames=table.num_poses, poses=table.num_poses, dialect="pose-table")
+            continue
         try:
             motion = read_bvh(path)
             entry["frames"] = motion.num_frames
-            rt = build_retargeter(motion, rig, rmap)
+            m = detect_dialect(motion, rmap) if isinstance(rmap, list) else rmap
+            entry["dialect"] = m.name
+            rt = build_retargeter(motion, rig, m)
             r_all, p_all = rt.apply(motion)
         except VhgenError as e:
             entry.update(status="skipped", error=str(e))
