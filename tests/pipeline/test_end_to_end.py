@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 CONFIG = """
 name: smoke
 seed: 11
-motions: [{m}/01_01.bvh, {m}/02_01.bvh, {m}/10_01.bvh]
+motions: [{m}/01_01.bvh, {m}/02_01.bvh, {m}/10_01.bvh, {tmp}/broken.bvh]
 sensor: kinect_v1
 poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
 avatars: {{count: 2}}
@@ -30,7 +30,9 @@ num_workers: 2
 
 def _config(tmp: Path, shared: Path, **kw) -> JobConfig:
     p = tmp / "smoke.yaml"
-    p.write_text(CONFIG.format(m=shared))
+    text = (shared / "02_01.bvh").read_text()
+    (tmp / "broken.bvh").write_text(text[: len(text) // 2])  # cut mid-file
+    p.write_text(CONFIG.format(m=shared, tmp=tmp))
     return JobConfig.load(p, **kw)
 
 
@@ -53,20 +55,20 @@ def test_contract(smoke, shared_mocap):
 
     tmp, cfg, summary = smoke
     store = tmp / "two.zarr"
-    assert summary["frames"] == 8 and summary["poses"] == 4
-    assert any(s["file"].endswith("10_01.bvh") and "LeftHip" in s["error"]
-               for s in summary["skipped"])
+    assert summary["frames"] == 10 and summary["poses"] == 5
+    assert [s["file"].split("/")[-1] for s in summary["skipped"]] == ["broken.bvh"]
+    assert "data rows" in summary["skipped"][0]["error"]
     assert all("llvmpipe" in r for r in summary["renderers"])
     g = zarr.open_group(str(store), mode="r")
     depth, labels = g["depth"], g["labels"]
-    assert depth.shape == (8, 480, 640) and depth.dtype == np.uint16
-    assert labels.shape == (8, 480, 640) and labels.dtype == np.uint8
+    assert depth.shape == (10, 480, 640) and depth.dtype == np.uint16
+    assert labels.shape == (10, 480, 640) and labels.dtype == np.uint8
     names = g.attrs["label_names"]
     assert len(names) == 31 and names[0] == "LU_head"
     assert len(g.attrs["label_colors"]) == 32
     d = depth[:]
     lab = labels[:]
-    for f in range(8):
+    for f in range(10):
         body = lab[f] > 0
         assert body.sum() > 5000, f  # a person fills part of every frame
         assert set(np.unique(lab[f])) <= set(range(32))
@@ -75,8 +77,10 @@ def test_contract(smoke, shared_mocap):
         assert valid.sum() > 0.9 * body.sum()
         assert d[f][valid].min() >= 800 and d[f][valid].max() <= 4000
     man = pq.read_table(store / "manifest.parquet")
-    assert man.num_rows == 8
-    assert man.column("frame").to_pylist() == list(range(8))
+    assert man.num_rows == 10
+    assert man.column("frame").to_pylist() == list(range(10))
+    assert {Path(f).name for f in man.column("motion_file").to_pylist()} == {
+        "01_01.bvh", "02_01.bvh", "10_01.bvh"}
     row = man.slice(0, 1).to_pylist()[0]
     for key in ("motion_file", "source_frame", "avatar_id", "avatar_params", "fx", "fy", "cx",
                 "cy", "world_to_camera", "seed", "sensor"):
@@ -107,11 +111,11 @@ def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap):
 
     tmp, cfg, _ = smoke
     summary = run_job(cfg, tmp / "faulty.zarr", fail_once_shards={0, 2})
-    assert summary["frames"] == 8 and summary["retries"] == 2
+    assert summary["frames"] == 10 and summary["retries"] == 2
     a, b = _store_files(tmp / "two.zarr"), _store_files(tmp / "faulty.zarr")
     assert all(a[k] == b[k] for k in a)
     man = pq.read_table(tmp / "faulty.zarr" / "manifest.parquet")
-    assert man.column("frame").to_pylist() == list(range(8))
+    assert man.column("frame").to_pylist() == list(range(10))
 
 
 def test_preview_sheet(smoke, tmp_path):
