@@ -54,6 +54,48 @@ def _cmd_corpus_build(args) -> int:
     return 0
 
 
+def _cmd_avatar_export(args) -> int:
+    import numpy as np
+
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.export import export_mesh, posed_mesh
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.body.shape import Shape, age_from_years
+    from vhgen.errors import ConfigError
+
+    values = {}
+    for item in args.shape or []:
+        key, _, val = item.partition("=")
+        try:
+            values[key] = float(val)
+        except ValueError:
+            raise ConfigError(None, f"--shape {key}", f"{val!r} is not a number") from None
+    if "age_years" in values:
+        values["age"] = age_from_years(values.pop("age_years"))
+    try:
+        shape = Shape(**values)
+    except TypeError as e:
+        raise ConfigError(None, "--shape", str(e)) from None
+    asset_dir = resolve_asset_dir(args.assets)
+    scheme = LabelScheme.load(args.labels)
+    body = build_body(asset_dir, scheme, shape=shape, clothing=tuple(args.clothing or ()))
+    rot = root = None
+    if args.pose:
+        from vhgen.mocap.bvh import read_bvh
+        from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
+
+        path, _, frame = args.pose.rpartition(":")
+        motion = read_bvh(path)
+        base = build_body(asset_dir, scheme)
+        rt = build_retargeter(motion, base.rig, detect_dialect(motion, load_all_maps()))
+        r, p = rt.apply(motion, frames=np.array([int(frame)]))
+        rot, root = r[0], p[0] * body.hip_drop / base.hip_drop
+    out = export_mesh(posed_mesh(body, rot, root, args.skinning), args.output)
+    print(f"wrote {out} ({len(body.vertices)} vertices, {len(body.faces)} triangles)")
+    return 0
+
+
 def _cmd_preview(args) -> int:
     from vhgen.preview import contact_sheet
 
@@ -125,6 +167,19 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--allow-truncated", action="store_true",
                    help="keep the complete rows of files with fewer rows than 'Frames:'")
     b.set_defaults(func=_cmd_corpus_build)
+
+    av = sub.add_parser("avatar", help="MakeHuman avatars")
+    avsub = av.add_subparsers(dest="avatar_cmd", required=True)
+    ex = avsub.add_parser("export", help="a shaped, posed avatar with label colours")
+    ex.add_argument("-o", "--output", required=True, help=".obj, .ply or .glb")
+    ex.add_argument("--shape", nargs="*", help="macro values, e.g. gender=1 age_years=40 "
+                                               "weight=0.7 muscle=0.6 height=0.8")
+    ex.add_argument("--pose", help="BVH_FILE:FRAME (default: rest pose)")
+    ex.add_argument("--labels", default="shotton31", help="label scheme (configs/labels)")
+    ex.add_argument("--clothing", nargs="*", choices=["tights", "skirt"])
+    ex.add_argument("--skinning", choices=["lbs", "dqs"], default="lbs")
+    ex.add_argument("--assets", help="MPFB2 asset folder")
+    ex.set_defaults(func=_cmd_avatar_export)
 
     v = sub.add_parser("preview", help="contact sheet PNG of a dataset")
     v.add_argument("store")

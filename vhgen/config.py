@@ -103,8 +103,24 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class AvatarConfig:
+    """How avatars are drawn (each from its own seeded stream, see pipeline.plan).
+
+    MakeHuman macro values are uniform in their ranges ([0, 1], age in years), the ethnic
+    mix is Dirichlet(ethnic_concentration); ``scale`` multiplies the shaped body; each
+    clothing helper is worn with its probability.
+    """
+
     count: int = 2
-    scale: tuple[float, float] = (0.92, 1.08)
+    scale: tuple[float, float] = (1.0, 1.0)
+    gender: tuple[float, float] = (0.0, 1.0)
+    age_years: tuple[float, float] = (18.0, 70.0)
+    muscle: tuple[float, float] = (0.2, 0.8)
+    weight: tuple[float, float] = (0.2, 0.9)
+    height: tuple[float, float] = (0.3, 0.7)  # MakeHuman spans 1.36-2.45 m (young male)
+    proportions: tuple[float, float] = (0.3, 1.0)
+    ethnic_concentration: float = 1.0
+    tights_probability: float = 0.0
+    skirt_probability: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -131,6 +147,7 @@ class JobConfig:
     frames_per_shard: int
     compression_level: int
     backend: str
+    skinning: str
     num_workers: int
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
@@ -164,10 +181,23 @@ class JobConfig:
                             _num(po, "skip_first", path, "poses.", lo=0, integer=True,
                                  default=0) if "skip_first" in po else 0)
         av = d.get("avatars") or {}
-        check_keys(av, {"count", "scale"}, set(), path, "avatars.")
-        avatars = AvatarConfig(_num(av, "count", path, "avatars.", lo=1, hi=100000, integer=True,
-                                    default=2),
-                               _range(av, "scale", path, "avatars.", (0.92, 1.08), lo=0.3, hi=2.0))
+        ad = AvatarConfig()
+        check_keys(av, {"count", "scale", "gender", "age_years", "muscle", "weight", "height",
+                        "proportions", "ethnic_concentration", "tights_probability",
+                        "skirt_probability"}, set(), path, "avatars.")
+        unit = {k: _range(av, k, path, "avatars.", getattr(ad, k), lo=0.0, hi=1.0)
+                for k in ("gender", "muscle", "weight", "height", "proportions")}
+        avatars = AvatarConfig(
+            count=_num(av, "count", path, "avatars.", lo=1, hi=100000, integer=True, default=2),
+            scale=_range(av, "scale", path, "avatars.", ad.scale, lo=0.3, hi=2.0),
+            age_years=_range(av, "age_years", path, "avatars.", ad.age_years, lo=1, hi=90),
+            ethnic_concentration=_num(av, "ethnic_concentration", path, "avatars.", lo=1e-3,
+                                      default=ad.ethnic_concentration),
+            tights_probability=_num(av, "tights_probability", path, "avatars.", lo=0, hi=1,
+                                    default=ad.tights_probability),
+            skirt_probability=_num(av, "skirt_probability", path, "avatars.", lo=0, hi=1,
+                                   default=ad.skirt_probability),
+            **unit)
         ca = d.get("camera") or {}
         cd = CameraConfig()
         check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m",
@@ -182,7 +212,10 @@ class JobConfig:
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}
-        check_keys(ren, {"backend"}, set(), path, "render.")
+        check_keys(ren, {"backend", "skinning"}, set(), path, "render.")
+        skinning = ren.get("skinning", "lbs")
+        if skinning not in ("lbs", "dqs"):
+            raise ConfigError(path, "render.skinning", f"must be lbs or dqs, got {skinning!r}")
         backend = overrides.pop("backend", None) or ren.get("backend", "egl")
         if backend not in ("egl", "osmesa"):
             raise ConfigError(path, "render.backend", f"must be egl or osmesa, got {backend!r}")
@@ -210,4 +243,4 @@ class JobConfig:
                                   integer=True, default=16),
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True, default=3),
-            backend=backend, num_workers=num_workers, source=str(path))
+            backend=backend, skinning=skinning, num_workers=num_workers, source=str(path))

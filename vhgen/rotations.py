@@ -141,3 +141,34 @@ def rigid(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
     out[..., :3, 3] = translation
     out[..., 3, 3] = 1.0
     return out
+
+
+def matrix_to_quaternion(matrix: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) as (x, y, z, w), w >= 0.
+
+    Shepperd's method: the largest of the four candidate pivots is used, so it is stable
+    near 180 degrees.
+    """
+    m = np.asarray(matrix, np.float64)
+    tr = np.trace(m, axis1=-2, axis2=-1)
+    cand = np.stack([m[..., 0, 0], m[..., 1, 1], m[..., 2, 2], tr], axis=-1)
+    k = np.argmax(cand, axis=-1)
+    q = np.empty(m.shape[:-2] + (4,), dtype=np.float64)
+    # w pivot
+    s = np.sqrt(np.maximum(1.0 + tr, 1e-300)) * 2
+    qw = np.stack([(m[..., 2, 1] - m[..., 1, 2]) / s, (m[..., 0, 2] - m[..., 2, 0]) / s,
+                   (m[..., 1, 0] - m[..., 0, 1]) / s, 0.25 * s], axis=-1)
+    s0 = np.sqrt(np.maximum(1.0 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2], 1e-300)) * 2
+    qx = np.stack([0.25 * s0, (m[..., 0, 1] + m[..., 1, 0]) / s0,
+                   (m[..., 0, 2] + m[..., 2, 0]) / s0, (m[..., 2, 1] - m[..., 1, 2]) / s0], axis=-1)
+    s1 = np.sqrt(np.maximum(1.0 + m[..., 1, 1] - m[..., 0, 0] - m[..., 2, 2], 1e-300)) * 2
+    qy = np.stack([(m[..., 0, 1] + m[..., 1, 0]) / s1, 0.25 * s1,
+                   (m[..., 1, 2] + m[..., 2, 1]) / s1, (m[..., 0, 2] - m[..., 2, 0]) / s1], axis=-1)
+    s2 = np.sqrt(np.maximum(1.0 + m[..., 2, 2] - m[..., 0, 0] - m[..., 1, 1], 1e-300)) * 2
+    qz = np.stack([(m[..., 0, 2] + m[..., 2, 0]) / s2, (m[..., 1, 2] + m[..., 2, 1]) / s2,
+                   0.25 * s2, (m[..., 1, 0] - m[..., 0, 1]) / s2], axis=-1)
+    q[...] = qw
+    for idx, cand_q in ((0, qx), (1, qy), (2, qz)):
+        q = np.where((k == idx)[..., None], cand_q, q)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., 3:4] < 0, -q, q)

@@ -24,7 +24,10 @@ OBJ_TO_METRES = 0.1
 class BaseMesh:
     """All vertices of base.obj and the triangles of selected groups.
 
-    vertices : (V, 3) float64 metres (all 19,158 vertices, joint cubes included).
+    vertices : (V, 3) float64 metres (all 19,158 vertices, joint cubes included), feet on
+        the floor.
+    vertices_obj : (V, 3) float64 as in the OBJ (decimetres, not grounded): what shape
+        targets offset.
     faces : (T, 3) int64 triangles (quads split along their 0-2 diagonal).
     face_group : (T,) int64 index into ``groups`` of the OBJ group each triangle came from.
     groups : OBJ group names in file order.
@@ -33,6 +36,7 @@ class BaseMesh:
     """
 
     vertices: np.ndarray
+    vertices_obj: np.ndarray
     faces: np.ndarray
     face_group: np.ndarray
     groups: list[str]
@@ -79,14 +83,20 @@ def load_base_mesh(asset_dir: Path) -> BaseMesh:
         idx = np.concatenate([np.arange(a, b + 1) for a, b in ranges]) if ranges else \
             np.zeros(0, np.int64)
         vgroups[name] = idx.astype(np.int64)
-    verts = verts * OBJ_TO_METRES
-    body_group = groups.index("body")
-    body_vertices = np.unique(faces[face_group == body_group])
-    floor = float(verts[body_vertices, 1].min())
-    verts[:, 1] -= floor
-    for a in (verts, faces, face_group):
+    raw = verts
+    verts, floor = to_metres_grounded(raw, faces[face_group == groups.index("body")])
+    for a in (raw, verts, faces, face_group):
         a.setflags(write=False)
-    return BaseMesh(verts, faces, face_group, groups, vgroups, floor)
+    return BaseMesh(verts, raw, faces, face_group, groups, vgroups, floor)
+
+
+def to_metres_grounded(vertices_obj: np.ndarray, body_faces: np.ndarray) -> tuple[np.ndarray,
+                                                                                   float]:
+    """OBJ decimetres -> metres with the lowest body vertex on y = 0; returns the shift."""
+    verts = np.asarray(vertices_obj, np.float64) * OBJ_TO_METRES
+    floor = float(verts[np.unique(body_faces), 1].min())
+    verts[:, 1] -= floor
+    return verts, floor
 
 
 @dataclass(frozen=True, eq=False)

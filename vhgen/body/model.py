@@ -3,6 +3,7 @@ fixed-length skinning weights and per-triangle part labels."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -10,9 +11,20 @@ from pathlib import Path
 import numpy as np
 
 from vhgen.body.labels import LabelScheme
-from vhgen.body.mesh import Rig, load_base_mesh, load_rig, load_weights, truncate_weights
+from vhgen.body.mesh import (
+    BaseMesh,
+    Rig,
+    load_base_mesh,
+    load_rig,
+    load_weights,
+    to_metres_grounded,
+    truncate_weights,
+)
+from vhgen.body.shape import MacroTargets, Shape
+from vhgen.errors import ConfigError
 
 BODY_GROUP = "body"
+CLOTHING_GROUPS = {"tights": "helper-tights", "skirt": "helper-skirt"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,6 +44,13 @@ class Body:
     def num_bones(self) -> int:
         return len(self.rig.names)
 
+    @property
+    def hip_drop(self) -> float:
+        """Height of the root bone's head above the lowest bone end, rest pose (metres)."""
+        root = int(np.flatnonzero(self.rig.parents < 0)[0])
+        low = min(self.rig.heads[:, 1].min(), self.rig.tails[:, 1].min())
+        return float(self.rig.heads[root, 1] - low)
+
     def fingerprint(self) -> str:
         """sha1 of the arrays, to tell two bodies apart in a manifest."""
         h = hashlib.sha1()
@@ -40,30 +59,73 @@ class Body:
         return h.hexdigest()[:16]
 
 
-def build_body(asset_dir: Path, scheme: LabelScheme, *, rig_name: str = "cmu_mb",
-               max_influences: int = 4, scale: float = 1.0) -> Body:
-    """Assemble the body from MPFB2 assets.
+@functools.lru_cache(maxsize=4)
+def _base(asset_dir: Path) -> BaseMesh:
+    return load_base_mesh(asset_dir)
 
-    ``scale`` scales the whole body uniformly about the point between the feet (a first
-    avatar parameter; shape modifiers come with the human-model work). Joint positions are
-    taken from the joint cubes of the scaled mesh, so the rig fits the body.
+
+@functools.lru_cache(maxsize=4)
+def _targets(asset_dir: Path) -> MacroTargets:
+    return MacroTargets(asset_dir)
+
+
+def _faces(base: BaseMesh, clothing: tuple[str, ...]) -> np.ndarray:
+    for c in clothing:
+        if c not in CLOTHING_GROUPS:
+            raise ConfigError(None, "clothing", f"unknown helper {c!r} (one of "
+                                                f"{', '.join(CLOTHING_GROUPS)})")
+    groups = [BODY_GROUP] + [CLOTHING_GROUPS[c] for c in clothing]
+    ids = [base.groups.index(g) for g in groups]
+    return base.faces[np.isin(base.face_group, ids)]
+
+
+@functools.lru_cache(maxsize=16)
+def _labels(asset_dir: Path, scheme: LabelScheme, clothing: tuple[str, ...],
+            rig_name: str) -> np.ndarray:
+    """Per-triangle labels, decided once on the unshaped base mesh so that every avatar
+    has the same part boundaries (the topology is shared)."""
+    base = _base(asset_dir)
+    rig = load_rig(asset_dir, base.vertices, base.vertex_groups, rig_name)
+    dense = load_weights(asset_dir, rig, len(base.vertices), rig_name)
+    labels = scheme.assign(rig, base.vertices, _faces(base, clothing), dense)
+    labels.setflags(write=False)
+    return labels
+
+
+def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = None,
+               scale: float = 1.0, clothing: tuple[str, ...] = (), rig_name: str = "cmu_mb",
+               max_influences: int = 4) -> Body:
+    """Assemble a body from MPFB2 assets.
+
+    shape : MakeHuman macro modifiers (None: the unmodified base mesh).
+    scale : uniform scale about the point between the feet, after the shape.
+    clothing : optional helper geometry to include and label ("tights", "skirt").
+    Joint positions come from the joint cubes of the shaped mesh, so the rig fits it.
     """
-    base = load_base_mesh(asset_dir)
-    verts_all = base.vertices * float(scale)
+    asset_dir = Path(asset_dir)
+    base = _base(asset_dir)
+    clothing = tuple(clothing)
+    raw = base.vertices_obj
+    if shape is not None:
+        raw = raw + _targets(asset_dir).offsets(shape, len(raw))
+    faces_all = _faces(base, clothing)
+    verts_all, _ = to_metres_grounded(raw, base.faces[base.face_group ==
+                                                      base.groups.index(BODY_GROUP)])
+    verts_all *= float(scale)
     rig = load_rig(asset_dir, verts_all, base.vertex_groups, rig_name)
     dense_all = load_weights(asset_dir, rig, len(verts_all), rig_name)
-    faces_all = base.faces[base.face_group == base.groups.index(BODY_GROUP)]
     keep = np.unique(faces_all)
     remap = np.full(len(verts_all), -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     faces = remap[faces_all]
     verts = verts_all[keep]
-    dense = dense_all[keep]
-    labels = scheme.assign(rig, verts, faces, dense)
-    joints, weights = truncate_weights(dense, max_influences)
-    for a in (verts, faces, joints, weights, labels):
+    labels = _labels(asset_dir, scheme, clothing, rig_name)
+    joints, weights = truncate_weights(dense_all[keep], max_influences)
+    for a in (verts, faces, joints, weights):
         a.setflags(write=False)
+    params = {"scale": float(scale), "rig": rig_name, "max_influences": int(max_influences),
+              "clothing": list(clothing)}
+    if shape is not None:
+        params["shape"] = shape.to_dict()
     return Body(vertices=verts, faces=faces, joints=joints, weights=weights,
-                face_labels=labels, rig=rig, scheme=scheme,
-                params={"scale": float(scale), "rig": rig_name,
-                        "max_influences": int(max_influences)})
+                face_labels=labels, rig=rig, scheme=scheme, params=params)

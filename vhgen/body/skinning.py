@@ -50,3 +50,45 @@ def skin_vertices(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
     m = np.asarray(matrices, np.float64)
     blended = np.einsum("vk,...vkij->...vij", weights, m[..., joints, :3, :])  # (..., V, 3, 4)
     return np.einsum("...vij,vj->...vi", blended[..., :3], vertices) + blended[..., 3]
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (x, y, z, w) quaternions."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+
+
+def dual_quaternions(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid (..., 4, 4) transforms -> unit dual quaternions: real (..., 4), dual (..., 4),
+    (x, y, z, w) order, real part with w >= 0, dual = 0.5 * t * real."""
+    from vhgen.rotations import matrix_to_quaternion
+
+    m = np.asarray(matrices, np.float64)
+    real = matrix_to_quaternion(m[..., :3, :3])
+    t = np.concatenate([m[..., :3, 3], np.zeros(m.shape[:-2] + (1,))], axis=-1)
+    return real, 0.5 * _qmul(t, real)
+
+
+def skin_vertices_dqs(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
+                      matrices: np.ndarray) -> np.ndarray:
+    """Dual-quaternion skinning (Kavan et al. 2008), float64 reference of the shader.
+
+    Same arguments as :func:`skin_vertices`; matrices must be rigid. Returns (..., V, 3).
+    """
+    real, dual = dual_quaternions(matrices)
+    r = real[..., joints, :]  # (..., V, K, 4)
+    d = dual[..., joints, :]
+    w = np.asarray(weights, np.float64)
+    sign = np.where(np.sum(r * r[..., :1, :], axis=-1) < 0, -1.0, 1.0) * w
+    br = np.sum(sign[..., None] * r, axis=-2)
+    bd = np.sum(sign[..., None] * d, axis=-2)
+    n = np.linalg.norm(br, axis=-1, keepdims=True)
+    br, bd = br / n, bd / n
+    v = np.asarray(vertices, np.float64)
+    xyz, rw = br[..., :3], br[..., 3:]
+    t = 2.0 * (rw * bd[..., :3] - bd[..., 3:] * xyz + np.cross(xyz, bd[..., :3]))
+    return v + 2.0 * np.cross(xyz, np.cross(xyz, v) + rw * v) + t

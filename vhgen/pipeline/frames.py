@@ -14,6 +14,7 @@ import numpy as np
 
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import Body, build_body
+from vhgen.body.shape import Shape
 from vhgen.body.skinning import bone_matrices, posed_heads
 from vhgen.camera import look_at
 from vhgen.config import JobConfig
@@ -57,15 +58,20 @@ class FrameGenerator:
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
-                                           near=cfg.camera.near_m, far=cfg.camera.far_m)
+                                           near=cfg.camera.near_m, far=cfg.camera.far_m,
+                                           skinning=cfg.skinning)
         self._avatar: tuple[int, Body] | None = None
+        # poses were retargeted onto the unshaped base body; an avatar's root height
+        # scales with its hip height so its feet stay on the floor
+        self._base_hip_drop = build_body(self.asset_dir, self.scheme).hip_drop
         self._sensor_json_base = cfg.sensor.to_dict()
 
     def _body(self, avatar_id: int) -> Body:
         """The avatar's body, uploaded to the GPU (one avatar resident at a time)."""
         if self._avatar is None or self._avatar[0] != avatar_id:
             params = self.avatars[avatar_id]
-            body = build_body(self.asset_dir, self.scheme, scale=params["scale"])
+            body = build_body(self.asset_dir, self.scheme, shape=Shape(**params["shape"]),
+                              scale=params["scale"], clothing=tuple(params["clothing"]))
             self.renderer.set_mesh(body.vertices, body.faces, body.joints, body.weights,
                                    body.face_labels, body.num_bones)
             self._avatar = (avatar_id, body)
@@ -78,9 +84,8 @@ class FrameGenerator:
         seed = int(self.plan["seeds"][frame])
         rng = np.random.default_rng(seed)
         body = self._body(avatar_id)
-        scale = self.avatars[avatar_id]["scale"]
         rot = self.rotations[pose]
-        root = self.roots[pose] * scale
+        root = self.roots[pose] * (body.hip_drop / self._base_hip_drop)
         # place the subject's root above the world origin; keep height and orientation
         offset = np.array([-root[0], 0.0, -root[2]])
         root = root + offset
@@ -110,7 +115,7 @@ class FrameGenerator:
             "motion_sha1": self.pose_meta["motion_sha1"][mid],
             "source_frame": int(self.pose_meta["source_frame"][pose]),
             "pose_index": pose, "avatar_id": avatar_id,
-            "avatar_params": json.dumps({**self.avatars[avatar_id], **body.params},
+            "avatar_params": json.dumps({**body.params, "skinning": self.cfg.skinning},
                                         sort_keys=True),
             "width": intr.width, "height": intr.height, "fx": intr.fx, "fy": intr.fy,
             "cx": intr.cx, "cy": intr.cy,

@@ -16,8 +16,42 @@ from vhgen.errors import RenderError
 LABEL_TEX_WIDTH = 4096
 
 
-def _shader(name: str) -> str:
-    return resources.files("vhgen.render").joinpath("shaders", name).read_text()
+SKINNING_MODES = ("lbs", "dqs")
+
+
+def _shader(name: str, defines: dict[str, object]) -> str:
+    """Shader source with ``#include "x.glsl"`` expanded and #defines after #version."""
+    folder = resources.files("vhgen.render").joinpath("shaders")
+    src = folder.joinpath(name).read_text()
+    while '#include "' in src:
+        start = src.index('#include "')
+        end = src.index('"', start + 10)
+        src = src[:start] + folder.joinpath(src[start + 10:end]).read_text() + src[end + 1:]
+    head, rest = src.split("\n", 1)
+    defs = "".join(f"#define {k} {v}\n" for k, v in defines.items())
+    return f"{head}\n{defs}{rest}"
+
+
+def write_bones(program, matrices: np.ndarray, mode: str) -> None:
+    """Upload (B, 4, 4) rigid float64 bone transforms as LBS matrices or dual quaternions."""
+    m = np.asarray(matrices, dtype=np.float64)
+    if mode == "lbs":
+        program["bones"].write(np.ascontiguousarray(np.swapaxes(m, -1, -2), dtype="f4").tobytes())
+    else:
+        from vhgen.body.skinning import dual_quaternions
+
+        real, dual = dual_quaternions(m)
+        program["dq_real"].write(np.ascontiguousarray(real, dtype="f4").tobytes())
+        program["dq_dual"].write(np.ascontiguousarray(dual, dtype="f4").tobytes())
+
+
+def _defines(num_bones: int, mode: str) -> dict[str, object]:
+    if mode not in SKINNING_MODES:
+        raise RenderError(f"unknown skinning {mode!r}; choose one of {', '.join(SKINNING_MODES)}")
+    d: dict[str, object] = {"MAX_BONES": num_bones, "LABEL_TEX_WIDTH": LABEL_TEX_WIDTH}
+    if mode == "dqs":
+        d["SKINNING_DQS"] = 1
+    return d
 
 
 class DepthLabelRenderer:
@@ -30,7 +64,10 @@ class DepthLabelRenderer:
     near, far : clip planes in metres, geometry outside is not drawn.
     """
 
-    def __init__(self, ctx, intr: Intrinsics, near: float = 0.1, far: float = 20.0):
+    def __init__(self, ctx, intr: Intrinsics, near: float = 0.1, far: float = 20.0,
+                 skinning: str = "lbs"):
+        _defines(1, skinning)
+        self.skinning = skinning
         self.ctx = ctx
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
@@ -48,11 +85,9 @@ class DepthLabelRenderer:
             return
         if self.program is not None:
             self.program.release()
-        defs = (f"#define MAX_BONES {num_bones}\n"
-                f"#define LABEL_TEX_WIDTH {LABEL_TEX_WIDTH}\n")
-        vs = _shader("skin.vert").replace("#version 330 core\n", "#version 330 core\n" + defs)
-        fs = _shader("skin.frag").replace("#version 330 core\n", "#version 330 core\n" + defs)
-        self.program = self.ctx.program(vertex_shader=vs, fragment_shader=fs)
+        defs = _defines(num_bones, self.skinning)
+        self.program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
+                                        fragment_shader=_shader("skin.frag", defs))
         self.program["face_labels"].value = 0
         self.program["projection"].write(self.projection.T.astype("f4").tobytes())
         self.num_bones = num_bones
@@ -108,9 +143,7 @@ class DepthLabelRenderer:
         m = np.asarray(camera_bones, dtype=np.float64)
         if m.shape != (self.num_bones, 4, 4):
             raise RenderError(f"expected ({self.num_bones}, 4, 4) bone matrices, got {m.shape}")
-        # column-major for GL: transpose each matrix
-        self.program["bones"].write(np.ascontiguousarray(
-            np.swapaxes(m, -1, -2), dtype="f4").tobytes())
+        write_bones(self.program, m, self.skinning)
         self.fbo.use()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         self.ctx.enable(moderngl.DEPTH_TEST)
@@ -133,3 +166,43 @@ class DepthLabelRenderer:
             if obj is not None:
                 obj.release()
         self.program = None
+
+
+class GPUSkinner:
+    """Reads back GPU-skinned vertex positions (transform feedback) with the same GLSL
+    skinning code the renderer draws with, to measure it against the float64 reference."""
+
+    def __init__(self, ctx, vertices, joints, weights, num_bones: int, skinning: str = "lbs"):
+        self.ctx = ctx
+        self.skinning = skinning
+        self.num_bones = int(num_bones)
+        self.n = len(vertices)
+        defs = _defines(self.num_bones, skinning)
+        self.program = ctx.program(vertex_shader=_shader("skin_feedback.vert", defs),
+                                   varyings=["out_position"])
+        self._bufs = [ctx.buffer(np.ascontiguousarray(vertices, dtype="f4").tobytes()),
+                      ctx.buffer(np.ascontiguousarray(joints, dtype="i4").tobytes()),
+                      ctx.buffer(np.ascontiguousarray(weights, dtype="f4").tobytes())]
+        self.vao = ctx.vertex_array(self.program, [(self._bufs[0], "3f", "in_position"),
+                                                   (self._bufs[1], "4i", "in_joints"),
+                                                   (self._bufs[2], "4f", "in_weights")])
+        self.out = ctx.buffer(reserve=self.n * 12)
+        # a standalone context has no default framebuffer; draws need one bound
+        self._rb = ctx.renderbuffer((1, 1))
+        self._fbo = ctx.framebuffer(color_attachments=[self._rb])
+
+    def positions(self, matrices: np.ndarray) -> np.ndarray:
+        """(V, 3) float32 skinned positions for rigid (B, 4, 4) bone transforms."""
+        import moderngl
+
+        write_bones(self.program, matrices, self.skinning)
+        self._fbo.use()
+        self.vao.transform(self.out, mode=moderngl.POINTS, vertices=self.n)
+        err = self.ctx.error
+        if err != "GL_NO_ERROR":
+            raise RenderError(f"OpenGL error in transform feedback: {err}")
+        return np.frombuffer(self.out.read(), dtype=np.float32).reshape(self.n, 3).copy()
+
+    def release(self) -> None:
+        for obj in (self.vao, self.out, *self._bufs, self.program, self._fbo, self._rb):
+            obj.release()
