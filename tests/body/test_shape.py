@@ -119,3 +119,38 @@ def test_other_label_schemes_cover_every_part(asset_dir, scheme):
             assert np.median(x) > 0, name
         if name.startswith("R") or name.startswith("R_"):
             assert np.median(x) < 0, name
+
+
+def test_avatar_rebuilt_from_manifest_params(asset_dir, shotton):
+    import json
+
+    from vhgen.config import AvatarConfig
+    from vhgen.pipeline.plan import avatar_params
+
+    p = avatar_params(7, 3, AvatarConfig(count=5, tights_probability=1.0))
+    a = build_body(asset_dir, shotton, shape=Shape.from_dict(p["shape"]), scale=p["scale"],
+                   clothing=tuple(p["clothing"]))
+    recorded = json.loads(json.dumps(a.params))  # what the manifest row stores
+    b = build_body(asset_dir, shotton, shape=Shape.from_dict(recorded["shape"]),
+                   scale=recorded["scale"], clothing=tuple(recorded["clothing"]))
+    assert a.fingerprint() == b.fingerprint() and "tights" in recorded["clothing"]
+
+
+def test_explicit_vertex_selectors(tmp_path, asset_dir, body):
+    from vhgen.body.labels import LabelScheme
+
+    some = list(range(0, 1400, 7))  # base.obj vertex numbering
+    bones = ", ".join(body.rig.names)
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nparts:\n"
+        f"  - {{name: picked, color: [1, 2, 3], select: [{{vertices: {some}}}]}}\n"
+        "  - {name: tights, color: [4, 5, 6], select: [{vertex_group: helper-tights}]}\n"
+        f"  - {{name: rest, color: [7, 8, 9], select: [{{bones: [{bones}]}}]}}\n")
+    scheme = LabelScheme.load(tmp_path / "s.yaml")
+    b = build_body(asset_dir, scheme, clothing=("tights",))
+    counts = np.bincount(b.face_labels, minlength=4)
+    assert counts[1] > 0 and counts[2] > 1000 and counts[3] > 10000
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: s\nparts:\n  - {name: a, color: [1, 2, 3], select: [{t: [0, 1]}]}\n")
+    with pytest.raises(ConfigError, match="needs bones, vertices or vertex_group"):
+        LabelScheme.load(bad)

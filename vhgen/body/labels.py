@@ -7,7 +7,10 @@ part one of whose selectors matches it. A selector matches on
 * ``bones``: the triangle's dominant bone (largest weight summed over its 3 vertices);
 * ``t``: ``[lo, hi)``, the position of the triangle's rest centroid projected on that
   bone's head->tail axis (0 at the head, 1 at the tail; may run outside [0, 1]);
-* ``side``: ``left`` or ``right`` of the subject (x > 0 is the subject's own left).
+* ``side``: ``left`` or ``right`` of the subject (x > 0 is the subject's own left);
+* ``vertices``: an explicit list of base-mesh vertex indices (MakeHuman's numbering in
+  ``base.obj``, 0-based), or ``vertex_group``: an MPFB2 vertex group name; a triangle
+  matches when all three of its vertices are in the set. ``bones`` may then be omitted.
 
 Labels are per triangle so a label image never blends two parts.
 """
@@ -26,9 +29,11 @@ from vhgen.yamlio import check_keys, find_config, load_yaml
 
 @dataclass(frozen=True)
 class Selector:
-    bones: tuple[str, ...]
+    bones: tuple[str, ...] = ()
     t: tuple[float, float] = (-np.inf, np.inf)
     side: str | None = None
+    vertices: tuple[int, ...] = ()
+    vertex_group: str | None = None
 
 
 @dataclass(frozen=True)
@@ -74,7 +79,15 @@ class LabelScheme:
             sels = []
             for k, s in enumerate(p["select"]):
                 w = f"{where}select[{k}]."
-                check_keys(s, {"bones", "t", "side"}, {"bones"}, path, w)
+                check_keys(s, {"bones", "t", "side", "vertices", "vertex_group"}, set(), path, w)
+                if not any(k in s for k in ("bones", "vertices", "vertex_group")):
+                    raise ConfigError(path, w + "bones",
+                                      "a selector needs bones, vertices or vertex_group")
+                verts = s.get("vertices", [])
+                if not isinstance(verts, list) or not all(
+                        isinstance(v, int) and v >= 0 for v in verts):
+                    raise ConfigError(path, w + "vertices",
+                                      "must be a list of non-negative vertex indices")
                 t = s.get("t", [None, None])
                 if not isinstance(t, list) or len(t) != 2:
                     raise ConfigError(path, w + "t", f"must be [lo, hi], got {t!r}")
@@ -83,7 +96,8 @@ class LabelScheme:
                 side = s.get("side")
                 if side not in (None, "left", "right"):
                     raise ConfigError(path, w + "side", f"must be left or right, got {side!r}")
-                sels.append(Selector(tuple(s["bones"]), (lo, hi), side))
+                sels.append(Selector(tuple(s.get("bones", ())), (lo, hi), side, tuple(verts),
+                                     s.get("vertex_group")))
             parts.append(Part(str(p["name"]), tuple(col), tuple(sels)))
         names = [p.name for p in parts]
         dup = {n for n in names if names.count(n) > 1}
@@ -92,10 +106,12 @@ class LabelScheme:
         return cls(str(d["name"]), tuple(parts), str(path))
 
     def assign(self, rig: Rig, vertices: np.ndarray, faces: np.ndarray,
-               weights: np.ndarray) -> np.ndarray:
+               weights: np.ndarray, vertex_groups: dict[str, np.ndarray] | None = None
+               ) -> np.ndarray:
         """Label (1..K) of every triangle; raises if a bone is unknown or a face unlabelled.
 
-        vertices : (V, 3) rest positions; faces : (T, 3); weights : (V, B) dense.
+        vertices : (V, 3) rest positions, all base-mesh vertices (so explicit vertex
+        indices mean base.obj's); faces : (T, 3) into them; weights : (V, B) dense.
         """
         for p in self.parts:
             for s in p.selectors:
@@ -114,8 +130,19 @@ class LabelScheme:
         labels = np.zeros(len(faces), dtype=np.uint8)
         for label, p in enumerate(self.parts, start=1):
             for s in p.selectors:
-                bone_ids = [rig.index(b) for b in s.bones]
-                m = np.isin(dominant, bone_ids) & (t >= s.t[0]) & (t < s.t[1]) & (labels == 0)
+                m = labels == 0
+                if s.bones:
+                    bone_ids = [rig.index(b) for b in s.bones]
+                    m &= np.isin(dominant, bone_ids) & (t >= s.t[0]) & (t < s.t[1])
+                if s.vertices or s.vertex_group:
+                    chosen = np.zeros(len(vertices), bool)
+                    chosen[[v for v in s.vertices if v < len(vertices)]] = True
+                    if s.vertex_group:
+                        if not vertex_groups or s.vertex_group not in vertex_groups:
+                            raise ConfigError(self.source, f"parts.{p.name}.select.vertex_group",
+                                              f"unknown vertex group {s.vertex_group!r}")
+                        chosen[vertex_groups[s.vertex_group]] = True
+                    m &= chosen[faces].all(axis=1)
                 if s.side == "left":
                     m &= left
                 elif s.side == "right":

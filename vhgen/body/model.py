@@ -87,7 +87,8 @@ def _labels(asset_dir: Path, scheme: LabelScheme, clothing: tuple[str, ...],
     base = _base(asset_dir)
     rig = load_rig(asset_dir, base.vertices, base.vertex_groups, rig_name)
     dense = load_weights(asset_dir, rig, len(base.vertices), rig_name)
-    labels = scheme.assign(rig, base.vertices, _faces(base, clothing), dense)
+    labels = scheme.assign(rig, base.vertices, _faces(base, clothing), dense,
+                           base.vertex_groups)
     labels.setflags(write=False)
     return labels
 

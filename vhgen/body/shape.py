@@ -62,9 +62,15 @@ class Shape:
             raise ConfigError(None, "shape.african/asian/caucasian", "all zero")
 
     def to_dict(self) -> dict:
+        """The values plus ``age_years`` (informative; :meth:`from_dict` ignores it)."""
         d = asdict(self)
         d["age_years"] = years_from_age(self.age)
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Shape:
+        """Rebuild from :meth:`to_dict` output, e.g. a manifest's ``avatar_params.shape``."""
+        return cls(**{k: float(v) for k, v in d.items() if k != "age_years"})
 
 
 def age_from_years(years: float) -> float:

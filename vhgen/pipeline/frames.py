@@ -70,7 +70,7 @@ class FrameGenerator:
         """The avatar's body, uploaded to the GPU (one avatar resident at a time)."""
         if self._avatar is None or self._avatar[0] != avatar_id:
             params = self.avatars[avatar_id]
-            body = build_body(self.asset_dir, self.scheme, shape=Shape(**params["shape"]),
+            body = build_body(self.asset_dir, self.scheme, shape=Shape.from_dict(params["shape"]),
                               scale=params["scale"], clothing=tuple(params["clothing"]))
             self.renderer.set_mesh(body.vertices, body.faces, body.joints, body.weights,
                                    body.face_labels, body.num_bones)

@@ -36,9 +36,7 @@ def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
     scale = float(rng.uniform(*cfg.scale))
     clothing = [c for c, p in (("tights", cfg.tights_probability),
                                ("skirt", cfg.skirt_probability)) if rng.uniform() < p]
-    params = shape.to_dict()
-    params.pop("age_years")
-    return {"shape": params, "scale": scale, "clothing": clothing}
+    return {"shape": shape.to_dict(), "scale": scale, "clothing": clothing}
 
 
 @dataclass(frozen=True)
