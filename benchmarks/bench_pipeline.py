@@ -43,7 +43,7 @@ def main() -> None:
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.plan import make_plan
     from vhgen.pipeline.poses import load_poses
-    from vhgen.sensor.kinect import depth_to_mm, simulate
+    from vhgen.sensor.model import SensorModel
     from vhgen.store.manifest import write_part
     from vhgen.store.zarr_store import create_store, write_shard
 
@@ -88,13 +88,12 @@ def main() -> None:
     rows.append(("skin+render (1 process)", n, time.perf_counter() - t))
 
     s = cfg.sensor
-    t = time.perf_counter()
-    for i, d in enumerate(depths):
-        z, valid = simulate(d, focal_px=s.intrinsics.fx, baseline_m=s.baseline_m, z_min=s.z_min_m,
-                            z_max=s.z_max_m, disparity_noise_px=s.disparity_noise_px,
-                            subpixel=s.subpixel_px, rng=np.random.default_rng(i))
-        depth_to_mm(z, valid)
-    rows.append((f"sensor ({s.name})", n, time.perf_counter() - t))
+    model = SensorModel(s)
+    if not s.needs:  # effects that need normals/projector depth are timed inside "frame"
+        t = time.perf_counter()
+        for i, d in enumerate(depths):
+            model.simulate(d, np.random.default_rng(i))
+        rows.append((f"sensor ({s.name})", n, time.perf_counter() - t))
 
     t = time.perf_counter()
     out_rows = [gen.render_frame(int(f)) for f in frames[: cfg.frames_per_shard]]
@@ -110,7 +109,7 @@ def main() -> None:
         lab = np.stack([r[1] for r in out_rows])
         t = time.perf_counter()
         for shard in range(4):
-            write_shard(store, shard, k, dep, lab)
+            write_shard(store, shard, k, dep, lab, None)
             meta = [dict(r[2], frame=shard * k + i, shard=shard) for i, r in enumerate(out_rows)]
             write_part(store, shard, meta, len(meta[0]["joints_cam"]) // 3)
         rows.append(("write (zarr shard + manifest)", 4 * k, time.perf_counter() - t))

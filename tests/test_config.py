@@ -30,9 +30,20 @@ def test_bad_configs_name_file_and_field(tmp_path, text, field):
     assert str(p) in str(ei.value) and field in str(ei.value)
 
 
-def test_sensor_range_checked(tmp_path):
-    src = (configs_dir() / "sensors" / "kinect_v1.yaml").read_text()
+@pytest.mark.parametrize("old, new, field", [
+    ("z_min_m: 0.8", "z_min_m: 5.0", "effects[0].range_gate.z_min_m"),
+    ("- range_gate:", "- range_gait:", "unknown effect 'range_gait'"),
+    ("sigma_px: 0.07", "sigma: 0.07", "effects[1].axial_noise.sigma"),
+    ("model: disparity", "model: gaussian", "effects[1].axial_noise.model"),
+    ("  - encode: {}\n", ""  , None),
+])
+def test_sensor_config_errors_name_the_field(tmp_path, old, new, field):
+    src = (configs_dir() / "sensors" / "kinect_v1_fast.yaml").read_text()
     p = tmp_path / "s.yaml"
-    p.write_text(src.replace("z_min_m: 0.8", "z_min_m: 5.0"))
-    with pytest.raises(ConfigError, match="z_min_m"):
+    p.write_text(src.replace(old, new))
+    if field is None:  # encode is optional
+        assert SensorConfig.load(p).effect("encode") is None
+        return
+    with pytest.raises(ConfigError) as ei:
         SensorConfig.load(p)
+    assert field in str(ei.value) and str(p) in str(ei.value)

@@ -6,14 +6,13 @@ errors. The core never handles raw dicts.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from vhgen.camera import Intrinsics
 from vhgen.errors import ConfigError
-from vhgen.yamlio import check_keys, find_config, load_yaml
+from vhgen.sensor.model import SensorConfig
+from vhgen.yamlio import check_keys, load_yaml
 
 BUILTIN_MOTION = "builtin:demo"
 
@@ -50,43 +49,6 @@ def _range(d: dict, key: str, src, prefix: str, default: tuple[float, float], *,
     if (lo is not None and a < lo) or (hi is not None and b > hi):
         raise ConfigError(src, prefix + key, f"[{a}, {b}] is outside [{lo}, {hi}]")
     return (a, b)
-
-
-@dataclass(frozen=True)
-class SensorConfig:
-    name: str
-    intrinsics: Intrinsics
-    baseline_m: float
-    z_min_m: float
-    z_max_m: float
-    subpixel_px: float
-    disparity_noise_px: float
-
-    @classmethod
-    def load(cls, name_or_path: str | Path) -> SensorConfig:
-        path = find_config("sensors", name_or_path)
-        d = load_yaml(path)
-        keys = {"name", "width", "height", "fx", "fy", "cx", "cy", "baseline_m", "z_min_m",
-                "z_max_m", "subpixel_px", "disparity_noise_px", "description"}
-        check_keys(d, keys, keys - {"description"}, path, "")
-        w = _num(d, "width", path, "", lo=8, hi=8192, integer=True)
-        h = _num(d, "height", path, "", lo=8, hi=8192, integer=True)
-        intr = Intrinsics(w, h, _num(d, "fx", path, "", lo=1e-3), _num(d, "fy", path, "", lo=1e-3),
-                          _num(d, "cx", path, ""), _num(d, "cy", path, ""))
-        zmin = _num(d, "z_min_m", path, "", lo=0.0)
-        zmax = _num(d, "z_max_m", path, "", lo=0.0, hi=65.0)
-        if zmin >= zmax:
-            raise ConfigError(path, "z_min_m", f"{zmin} >= z_max_m {zmax}")
-        return cls(name=str(d["name"]), intrinsics=intr,
-                   baseline_m=_num(d, "baseline_m", path, "", lo=1e-4),
-                   z_min_m=zmin, z_max_m=zmax,
-                   subpixel_px=_num(d, "subpixel_px", path, "", lo=0.0, hi=1.0),
-                   disparity_noise_px=_num(d, "disparity_noise_px", path, "", lo=0.0, hi=5.0))
-
-    def to_dict(self) -> dict:
-        out = dataclasses.asdict(self)
-        out["intrinsics"] = self.intrinsics.to_dict()
-        return out
 
 
 @dataclass(frozen=True)
@@ -223,7 +185,7 @@ class JobConfig:
             d, "num_workers", path, "", lo=1, hi=4096, integer=True, default=2)
         if overrides:
             raise ConfigError(path, "overrides", f"unknown overrides {sorted(overrides)}")
-        sensor_ref = d.get("sensor", "kinect_v1")
+        sensor_ref = d.get("sensor", "kinect_v1_full")
         sensor_path = sensor_ref if not str(sensor_ref).endswith((".yaml", ".yml")) else \
             str((path.parent / sensor_ref).resolve())
         try:

@@ -18,7 +18,7 @@ from vhgen.body.shape import Shape
 from vhgen.body.skinning import bone_matrices, posed_heads
 from vhgen.camera import look_at
 from vhgen.config import JobConfig
-from vhgen.sensor.kinect import depth_to_mm, simulate
+from vhgen.sensor.model import SensorModel
 from vhgen.store.manifest import write_part
 from vhgen.store.zarr_store import write_shard
 
@@ -57,14 +57,18 @@ class FrameGenerator:
         self.scheme = LabelScheme.load(cfg.labels)
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
+        self.sensor = SensorModel(cfg.sensor)
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
-                                           skinning=cfg.skinning)
+                                           skinning=cfg.skinning,
+                                           normals="normals" in cfg.sensor.needs)
+        enc = cfg.sensor.effect("encode")
+        self.raw11 = bool(enc is not None and enc.params["raw11"])
         self._avatar: tuple[int, Body] | None = None
         # poses were retargeted onto the unshaped base body; an avatar's root height
         # scales with its hip height so its feet stay on the floor
         self._base_hip_drop = build_body(self.asset_dir, self.scheme).hip_drop
-        self._sensor_json_base = cfg.sensor.to_dict()
+        self._sensor_json = json.dumps(cfg.sensor.to_dict(), sort_keys=True)
 
     def _body(self, avatar_id: int) -> Body:
         """The avatar's body, uploaded to the GPU (one avatar resident at a time)."""
@@ -92,21 +96,20 @@ class FrameGenerator:
         mats = bone_matrices(body.rig, rot, root)
         cam = sample_camera(rng, self.cfg.camera)
         w2c = cam["world_to_camera"]
-        depth_f, labels = self.renderer.render(w2c @ mats)
         s = self.cfg.sensor
-        z, valid = simulate(depth_f, focal_px=s.intrinsics.fx, baseline_m=s.baseline_m,
-                            z_min=s.z_min_m, z_max=s.z_max_m,
-                            disparity_noise_px=s.disparity_noise_px, subpixel=s.subpixel_px,
-                            rng=rng)
-        depth_mm = depth_to_mm(z, valid)
+        depth_f, labels = self.renderer.render(w2c @ mats)
+        normals = self.renderer.normals if self.renderer.want_normals else None
+        proj = None
+        if "projector_depth" in s.needs:
+            # the projector sits at +baseline along the camera's x axis (rectified rig)
+            w2p = w2c.copy()
+            w2p[0, 3] -= s.baseline_m
+            proj, _ = self.renderer.render(w2p @ mats)
+        out = self.sensor.simulate(depth_f, rng, labels=labels, normals=normals,
+                                   projector_depth=proj)
+        depth_mm, labels, valid = out.depth_mm, out.labels, out.valid
         heads = posed_heads(body.rig, rot, root)
         joints_cam = (heads @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
-        effects = ["planar_depth", "range_gating"]
-        if s.disparity_noise_px > 0:
-            effects.append("disparity_noise")
-        if s.subpixel_px > 0:
-            effects.append("disparity_quantisation")
-        effects.append("uint16_mm")
         mid = int(self.pose_meta["motion_id"][pose])
         intr = s.intrinsics
         row = {
@@ -125,22 +128,26 @@ class FrameGenerator:
             "body_offset": offset.tolist(),
             "joints_cam": joints_cam.reshape(-1).tolist(),
             "seed": seed,
-            "sensor": json.dumps({**self._sensor_json_base, "effects": effects}, sort_keys=True),
+            "sensor": self._sensor_json,
+            "holes": json.dumps(out.holes, sort_keys=True),
             "valid_pixels": int(valid.sum()), "body_pixels": int((labels > 0).sum()),
         }
-        return depth_mm, labels, row
+        return depth_mm, labels, row, out.raw11
 
     def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""
         h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
         depth = np.zeros((stop - start, h, w), np.uint16)
         labels = np.zeros((stop - start, h, w), np.uint8)
+        raw = np.zeros((stop - start, h, w), np.uint16) if self.raw11 else None
         rows = []
         for i, f in enumerate(range(start, stop)):
-            depth[i], labels[i], row = self.render_frame(f)
+            depth[i], labels[i], row, r11 = self.render_frame(f)
+            if raw is not None:
+                raw[i] = r11
             row["shard"] = shard
             rows.append(row)
-        write_shard(store, shard, self.cfg.frames_per_shard, depth, labels)
+        write_shard(store, shard, self.cfg.frames_per_shard, depth, labels, raw)
         num_joints = len(rows[0]["joints_cam"]) // 3
         write_part(store, shard, rows, num_joints)
         return {"shard": shard, "frames": stop - start, "renderer": self.renderer_info,

@@ -65,15 +65,22 @@ class DepthLabelRenderer:
     """
 
     def __init__(self, ctx, intr: Intrinsics, near: float = 0.1, far: float = 20.0,
-                 skinning: str = "lbs"):
+                 skinning: str = "lbs", normals: bool = False):
         _defines(1, skinning)
         self.skinning = skinning
+        self.want_normals = bool(normals)
         self.ctx = ctx
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
-        self.color = ctx.texture((intr.width, intr.height), 2, dtype="f4")
-        self.depth = ctx.depth_renderbuffer((intr.width, intr.height))
-        self.fbo = ctx.framebuffer(color_attachments=[self.color], depth_attachment=self.depth)
+        size = (intr.width, intr.height)
+        self.color = ctx.texture(size, 2, dtype="f4")
+        attachments = [self.color]
+        if self.want_normals:  # a second target only when a sensor effect needs normals
+            self.normal_tex = ctx.texture(size, 4, dtype="f4")
+            attachments.append(self.normal_tex)
+            self._normals = np.empty((intr.height, intr.width, 4), dtype=np.float32)
+        self.depth = ctx.depth_renderbuffer(size)
+        self.fbo = ctx.framebuffer(color_attachments=attachments, depth_attachment=self.depth)
         self._out = np.empty((intr.height, intr.width, 2), dtype=np.float32)
         self.program = None
         self.num_bones = 0
@@ -86,6 +93,8 @@ class DepthLabelRenderer:
         if self.program is not None:
             self.program.release()
         defs = _defines(num_bones, self.skinning)
+        if self.want_normals:
+            defs["WANT_NORMALS"] = 1
         self.program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
                                         fragment_shader=_shader("skin.frag", defs))
         self.program["face_labels"].value = 0
@@ -134,7 +143,8 @@ class DepthLabelRenderer:
         """Draw one pose.
 
         camera_bones : (B, 4, 4) float64 world_to_camera @ M_b.
-        Returns depth (H, W) float32 metres (0 = no hit) and labels (H, W) uint8.
+        Returns depth (H, W) float32 metres (0 = no hit) and labels (H, W) uint8; with
+        ``normals=True`` the camera-frame normals of the same draw are in :attr:`normals`.
         """
         import moderngl
 
@@ -151,6 +161,9 @@ class DepthLabelRenderer:
         self.label_tex.use(0)
         self.vao.render(moderngl.TRIANGLES)
         self.fbo.read_into(self._out, components=2, dtype="f4")
+        if self.want_normals:
+            self.fbo.read_into(self._normals, components=4, attachment=1, dtype="f4")
+            self.normals = self._normals[..., :3].copy()
         self._check("after draw")
         return self._out[..., 0].copy(), self._out[..., 1].astype(np.uint8)
 
@@ -162,7 +175,8 @@ class DepthLabelRenderer:
 
     def release(self) -> None:
         self._release_mesh()
-        for obj in (self.program, self.fbo, self.color, self.depth):
+        extra = (self.normal_tex,) if self.want_normals else ()
+        for obj in (self.program, self.fbo, self.color, self.depth, *extra):
             if obj is not None:
                 obj.release()
         self.program = None

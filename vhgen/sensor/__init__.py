@@ -1,5 +1,7 @@
-"""Depth sensor models (pure NumPy)."""
+"""Depth sensor models (NumPy and numba kernels; no GL, no Ray)."""
 
-from vhgen.sensor.kinect import depth_to_mm, quantise_disparity, simulate
+from vhgen.sensor.effects import EFFECTS, SensorState
+from vhgen.sensor.model import SensorConfig, SensorModel, SensorOutput, dot_pattern
 
-__all__ = ["depth_to_mm", "quantise_disparity", "simulate"]
+__all__ = ["EFFECTS", "SensorConfig", "SensorModel", "SensorOutput", "SensorState",
+           "dot_pattern"]

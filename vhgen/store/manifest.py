@@ -36,7 +36,8 @@ def manifest_schema(num_joints: int):
         ("body_offset", pa.list_(pa.float64(), 3)),  # added to the retargeted pose
         ("joints_cam", pa.list_(pa.float32(), 3 * num_joints)),  # bone heads, camera frame
         ("seed", pa.uint64()),
-        ("sensor", pa.string()),  # JSON: sensor name, settings, effects applied
+        ("sensor", pa.string()),  # JSON: sensor name, intrinsics, effects applied in order
+        ("holes", pa.string()),  # JSON: pixels without measurement, by cause
         ("valid_pixels", pa.int32()),
         ("body_pixels", pa.int32()),
     ])

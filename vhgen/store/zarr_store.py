@@ -3,6 +3,8 @@
 Contract (later work may add arrays and columns, never change these):
 
 * ``depth``  (N, H, W) uint16 millimetres, 0 = no measurement;
+* ``raw`` (N, H, W) uint16, optional: the sensor's 11-bit raw disparity (2047 = invalid),
+  present when the sensor's ``encode`` effect has ``raw11``;
 * ``labels`` (N, H, W) uint8, 0 = background, 1..K = body parts; the group attributes
   ``label_names`` (K names, label k = names[k-1]) and ``label_colors`` ((K+1) x RGB,
   row 0 background) describe them;
@@ -37,7 +39,7 @@ def _codecs(level: int):
 
 def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
                  frames_per_shard: int, compression_level: int, attrs: dict,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False, raw11: bool = False) -> None:
     """Create the group and its empty arrays (driver only, before any worker writes)."""
     import zarr
 
@@ -45,11 +47,14 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
     if path.exists() and not overwrite:
         raise StoreError(f"{path} exists; pass overwrite (or resume) to reuse it")
     root = zarr.open_group(str(path), mode="w", zarr_format=3)
-    for name, dtype in (("depth", "uint16"), ("labels", "uint8")):
+    arrays = [("depth", "uint16", 0), ("labels", "uint8", 0)]
+    if raw11:
+        arrays.append(("raw", "uint16", 2047))
+    for name, dtype, fill in arrays:
         root.create_array(name, shape=(num_frames, height, width), dtype=dtype,
                           chunks=(1, height, width),
                           shards=(frames_per_shard, height, width),
-                          compressors=_codecs(compression_level), fill_value=0,
+                          compressors=_codecs(compression_level), fill_value=fill,
                           dimension_names=("frame", "y", "x"))
     root.attrs.update({**attrs, "vhgen_contract": CONTRACT_VERSION})
     (path / MANIFEST_PARTS).mkdir(exist_ok=True)
@@ -65,7 +70,7 @@ def open_store(path: str | Path, mode: str = "r"):
 
 
 def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.ndarray,
-                labels: np.ndarray) -> None:
+                labels: np.ndarray, raw: np.ndarray | None = None) -> None:
     """Write one whole shard of both arrays (the only writer of this shard)."""
     root = open_store(path, mode="r+")
     start = shard * frames_per_shard
@@ -77,6 +82,8 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
                          "expected uint16/uint8")
     root["depth"][start:start + n] = depth
     root["labels"][start:start + n] = labels
+    if raw is not None:
+        root["raw"][start:start + n] = raw
 
 
 def completed_shards(path: str | Path) -> set[int]:
