@@ -96,6 +96,17 @@ def _cmd_avatar_export(args) -> int:
     return 0
 
 
+def _cmd_bench_fidelity(args) -> int:
+    from vhgen.sensor.fidelity import DEFAULT_CONFIGS, bench_fidelity
+
+    res = bench_fidelity(args.out, quick=args.quick, human=not args.no_human,
+                         configs=tuple(args.configs or DEFAULT_CONFIGS), backend=args.backend,
+                         motion=args.motion, asset_dir=args.assets)
+    print(res["table"])
+    print(f"wrote {args.out}/fidelity.json, table.txt, fidelity.png")
+    return 0
+
+
 def _cmd_preview(args) -> int:
     from vhgen.preview import contact_sheet
 
@@ -180,6 +191,20 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--skinning", choices=["lbs", "dqs"], default="lbs")
     ex.add_argument("--assets", help="MPFB2 asset folder")
     ex.set_defaults(func=_cmd_avatar_export)
+
+    bn = sub.add_parser("bench", help="benchmarks")
+    bsub = bn.add_subparsers(dest="bench_cmd", required=True)
+    fi = bsub.add_parser("fidelity", help="sensor configs against the structured-light "
+                                          "reference: error and ms per frame")
+    fi.add_argument("--out", default="out/fidelity", help="folder for json, table, png")
+    fi.add_argument("--configs", nargs="*", help="sensor configs (default: ideal, fast, "
+                                                 "full, exact shadows)")
+    fi.add_argument("--quick", action="store_true", help="one scene per kind")
+    fi.add_argument("--no-human", action="store_true", help="analytic scenes only (no GL)")
+    fi.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
+    fi.add_argument("--motion", help="BVH for the human scene (default: the demo clip)")
+    fi.add_argument("--assets", help="MPFB2 asset folder")
+    fi.set_defaults(func=_cmd_bench_fidelity)
 
     v = sub.add_parser("preview", help="contact sheet PNG of a dataset")
     v.add_argument("store")

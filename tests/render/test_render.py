@@ -116,3 +116,16 @@ def test_unknown_backend():
 
     with pytest.raises(RenderError, match="unknown GL backend"):
         create_context("vulkan")
+
+
+def test_renderers_can_be_released_and_recreated(gl_ctx):
+    """A released renderer's framebuffer must not break the next one on the same context."""
+    v, f = _quad(-1, 1, -1, 1, 2)
+    for _ in range(3):
+        ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+        ren.set_mesh(v, f, np.zeros((4, 4), int), np.tile([1.0, 0, 0, 0], (4, 1)),
+                     np.ones(2, np.uint8), 1)
+        depth, _ = ren.render(np.eye(4)[None])
+        assert depth[59, 79] == pytest.approx(2.0)
+        np.testing.assert_allclose(ren.normals[59, 79], [0, 0, -1], atol=1e-6)
+        ren.release()

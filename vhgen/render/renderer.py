@@ -17,6 +17,18 @@ LABEL_TEX_WIDTH = 4096
 
 
 SKINNING_MODES = ("lbs", "dqs")
+_PARKING: dict[int, object] = {}
+
+
+def _park(ctx) -> None:
+    """Bind a tiny framebuffer that is never released, so our framebuffers are never bound
+    when released: moderngl rebinds the current framebuffer when it creates the next one,
+    and a deleted one there is GL_INVALID_OPERATION."""
+    fbo = _PARKING.get(id(ctx))
+    if fbo is None:
+        fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((1, 1))])
+        _PARKING[id(ctx)] = fbo
+    fbo.use()
 
 
 def _shader(name: str, defines: dict[str, object]) -> str:
@@ -174,6 +186,7 @@ class DepthLabelRenderer:
         self.vao = None
 
     def release(self) -> None:
+        _park(self.ctx)
         self._release_mesh()
         extra = (self.normal_tex,) if self.want_normals else ()
         for obj in (self.program, self.fbo, self.color, self.depth, *extra):
@@ -218,5 +231,6 @@ class GPUSkinner:
         return np.frombuffer(self.out.read(), dtype=np.float32).reshape(self.n, 3).copy()
 
     def release(self) -> None:
+        _park(self.ctx)
         for obj in (self.vao, self.out, *self._bufs, self.program, self._fbo, self._rb):
             obj.release()

@@ -17,7 +17,8 @@ import numpy as np
 from vhgen.camera import Intrinsics
 from vhgen.errors import ConfigError
 
-HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise")
+HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",
+               "matching")
 
 
 @dataclass
@@ -34,27 +35,43 @@ class SensorState:
     d: np.ndarray | None = None  # float64 px (disparity domain) when domain == "d"
     domain: str = "z"
     holes: dict = field(default_factory=dict)  # cause -> bool mask of pixels it removed
+    rays_unit: np.ndarray | None = None  # (H, W, 3) unit viewing rays (cached per sensor)
+    ray_norm: np.ndarray | None = None  # (H, W) |ray| for z = 1
     dots: object = None  # callable (d, valid) -> bool (H, W): a dot lands on the pixel
+    pattern: np.ndarray | None = None  # the projector's binary dot pattern
 
     @property
     def fb(self) -> float:
         return self.intr.fx * self.baseline_m
 
     def to_disparity(self) -> np.ndarray:
+        """Switch to the disparity domain (in place: the depth array becomes d)."""
         if self.domain == "z":
-            d = np.zeros_like(self.z)
-            np.divide(self.fb, self.z, out=d, where=self.valid)
-            self.d = d
+            from vhgen.sensor.kernels import invert_inplace
+
+            invert_inplace(self.z, self.valid, self.fb)
+            self.d, self.z = self.z, None
             self.domain = "d"
         return self.d
 
     def to_depth(self) -> np.ndarray:
         if self.domain == "d":
-            z = np.zeros_like(self.d)
-            np.divide(self.fb, self.d, out=z, where=self.valid)
-            self.z = z
+            from vhgen.sensor.kernels import invert_inplace
+
+            invert_inplace(self.d, self.valid, self.fb)
+            self.z, self.d = self.d, None
             self.domain = "z"
         return self.z
+
+    def normals_cos(self) -> np.ndarray:
+        """|cos| of the incidence angle per pixel (needs normals)."""
+        from vhgen.sensor.kernels import incidence_cos
+
+        return incidence_cos(np.ascontiguousarray(self.normals), self.rays_unit)
+
+    def normal_draws(self, rng: np.random.Generator) -> np.ndarray:
+        """One uint16 draw per pixel, to be mapped through NORMAL_TABLE (fast N(0, 1))."""
+        return rng.integers(0, 65536, size=self.valid.size, dtype=np.uint16)
 
     def invalidate(self, mask: np.ndarray, cause: str) -> None:
         """Remove ``mask`` pixels (recording why) and zero them in the active domain."""
@@ -62,11 +79,8 @@ class SensorState:
         if not new.any():
             return
         self.holes[cause] = self.holes.get(cause, np.zeros_like(self.valid)) | new
-        self.valid = self.valid & ~new
-        if self.domain == "z":
-            self.z = np.where(self.valid, self.z, 0.0)
-        else:
-            self.d = np.where(self.valid, self.d, 0.0)
+        self.valid &= ~new
+        (self.z if self.domain == "z" else self.d)[new] = 0.0
 
 
 @dataclass(frozen=True)
@@ -124,13 +138,20 @@ class Effect:
         raise NotImplementedError
 
 
+def _normal_table() -> np.ndarray:
+    """65536 quantiles of N(0, 1), rescaled to unit variance (tails cut at 4.3 sigma)."""
+    from scipy.special import ndtri
+
+    t = ndtri((np.arange(65536) + 0.5) / 65536)
+    return (t / t.std()).astype(np.float64)
+
+
+NORMAL_TABLE = _normal_table()
+
+
 def _incidence_cos(s: SensorState) -> np.ndarray:
     """cos of the angle between each pixel's viewing ray and the surface normal."""
-    from vhgen.camera import pixel_rays
-
-    rays = pixel_rays(s.intr)
-    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
-    return np.abs(np.einsum("hwc,hwc->hw", rays, s.normals.astype(np.float64)))
+    return s.normals_cos()
 
 
 class RangeGate(Effect):
@@ -213,24 +234,28 @@ class LateralNoise(Effect):
         return frozenset({"normals"}) if self.params["model"] == "nguyen" else frozenset()
 
     def apply(self, s, rng):
-        h, w = s.z.shape
-        sigma = self.params["sigma_px"]
+        from vhgen.sensor.kernels import lateral_indices
+
+        h, w = s.valid.shape
+        sigma = np.array([self.params["sigma_px"]])
         if self.params["model"] == "nguyen":
             th = np.minimum(np.arccos(np.clip(_incidence_cos(s), 0, 1)), np.deg2rad(85))
-            sigma = sigma / 0.8 * (0.8 + 0.035 * th / (np.pi / 2 - th))
-        du = rng.standard_normal((h, w)) * sigma
-        dv = rng.standard_normal((h, w)) * sigma
-        v, u = np.mgrid[0:h, 0:w]
-        us = np.clip(np.rint(u + du).astype(np.int64), 0, w - 1)
-        vs = np.clip(np.rint(v + dv).astype(np.int64), 0, h - 1)
+            sigma = self.params["sigma_px"] / 0.8 * (0.8 + 0.035 * th / (np.pi / 2 - th))
+        draws = rng.integers(0, 2**32, size=h * w, dtype=np.uint32)
+        idx = lateral_indices(draws, NORMAL_TABLE, np.ascontiguousarray(sigma, dtype=np.float64),
+                              h, w)
+        from vhgen.sensor.kernels import gather_state
+
         z = s.to_depth()
-        s.z = z[vs, us]
-        s.valid = s.valid[vs, us]
-        if s.labels is not None:
-            s.labels = s.labels[vs, us]
+        nrm = s.normals if s.normals is not None else np.zeros((0, 3), np.float32)
+        lab = s.labels if s.labels is not None else np.zeros(0, np.uint8)
+        s.z, s.valid, n2, l2 = gather_state(idx, z, s.valid, np.ascontiguousarray(nrm),
+                                            np.ascontiguousarray(lab))
         if s.normals is not None:
-            s.normals = s.normals[vs, us]
-        s.holes = {k: m[vs, us] for k, m in s.holes.items()}
+            s.normals = n2.reshape(h, w, 3)
+        if s.labels is not None:
+            s.labels = l2.reshape(h, w)
+        s.holes = {k: m.reshape(-1)[idx].reshape(h, w) for k, m in s.holes.items()}
 
 
 class AxialNoise(Effect):
@@ -259,37 +284,37 @@ class AxialNoise(Effect):
         return frozenset({"normals"}) if self.params["angle_term"] else frozenset()
 
     def apply(self, s, rng):
+        from vhgen.sensor.kernels import add_noise_inplace, add_noise_sigma_inplace
+
         model = self.params["model"]
-        idx = np.flatnonzero(s.valid)
-        n = len(idx)
         if model == "disparity":
             d = s.to_disparity()
-            flat = d.reshape(-1)
-            flat[idx] += rng.standard_normal(n) * self.params["sigma_px"]
+            add_noise_inplace(d, s.valid, s.normal_draws(rng), NORMAL_TABLE,
+                              self.params["sigma_px"])
             s.invalidate(d <= 0, "noise")
             return
         z = s.to_depth()
-        flat = z.reshape(-1)
-        zv = flat[idx]
         if model == "barron_malik":
-            z_cm = np.floor(zv * 100 + 0.5)
-            disp = 35130.0 / np.maximum(z_cm, 1.0) + rng.standard_normal(n) / 6.0
+            idx = np.flatnonzero(s.valid)
+            flat = z.reshape(-1)
+            z_cm = np.floor(flat[idx] * 100 + 0.5)
+            disp = 35130.0 / np.maximum(z_cm, 1.0) + NORMAL_TABLE[s.normal_draws(rng)[idx]] / 6
             dq = np.floor(disp + 0.5)
             ok = dq > 0
             flat[idx] = np.where(ok, 35130.0 / np.where(ok, dq, 1.0) / 100.0, 0.0)
             s.invalidate(z <= 0, "noise")
             return
         if model == "khoshelham":
-            sigma = 1.425e-3 * zv * zv
+            sigma = 1.425e-3 * z * z
         else:
-            sigma = 0.0012 + 0.0019 * (zv - 0.4) ** 2
+            sigma = 0.0012 + 0.0019 * (z - 0.4) ** 2
             if self.params["angle_term"]:
-                th = np.arccos(np.clip(_incidence_cos(s).reshape(-1)[idx], 0, 1))
-                th = np.minimum(th, np.deg2rad(85))
-                extra = np.where(th > np.deg2rad(60),
-                                 1e-4 / np.sqrt(zv) * th ** 2 / (np.pi / 2 - th) ** 2, 0.0)
+                th = np.minimum(np.arccos(np.clip(_incidence_cos(s), 0, 1)), np.deg2rad(85))
+                extra = np.where(th > np.deg2rad(60), 1e-4 / np.sqrt(np.maximum(z, 1e-6)) *
+                                 th ** 2 / (np.pi / 2 - th) ** 2, 0.0)
                 sigma = sigma + extra
-        flat[idx] = zv + rng.standard_normal(n) * sigma
+        add_noise_sigma_inplace(z, s.valid, s.normal_draws(rng), NORMAL_TABLE,
+                                np.ascontiguousarray(sigma))
         s.invalidate(z <= 0, "noise")
 
 
@@ -354,12 +379,14 @@ class CorrelationWindow(Effect):
             raise ConfigError(None, f"{self.NAME}.window", "must be odd")
 
     def apply(self, s, rng):
-        from vhgen.sensor.kernels import correlation_window
+        from vhgen.sensor.kernels import correlation_window, dots_from_pattern
+        from vhgen.sensor.model import PATTERN_PAD
 
         d = s.to_disparity()
-        if s.dots is None:
+        if s.pattern is None:
             raise ValueError("correlation_window needs the projector dot pattern")
-        out, ok = correlation_window(d, s.valid, s.dots(d, s.valid),
+        dots = dots_from_pattern(d, s.valid, s.pattern, PATTERN_PAD)
+        out, ok = correlation_window(d, s.valid, dots,
                                      int(self.params["window"]) // 2, self.params["frac"],
                                      self.params["inlier_px"], self.params["splat_radius_px"])
         # pixels that had a valid surface but no accepted dot reached them
@@ -380,14 +407,11 @@ class Dropout(Effect):
     NEEDS = frozenset({"normals"})
 
     def apply(self, s, rng):
-        from vhgen.camera import pixel_rays
-
         z = s.to_depth()
-        cos = _incidence_cos(s)
-        grazing = cos < np.cos(np.deg2rad(self.params["max_angle_deg"]))
-        r = z * np.linalg.norm(pixel_rays(s.intr), axis=-1)
-        dark = self.params["albedo"] < 0.01 + 0.16 * r
-        s.invalidate(s.valid & (grazing | dark), "dropout")
+        grazing = _incidence_cos(s) < np.cos(np.deg2rad(self.params["max_angle_deg"]))
+        # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16, r = z |ray|
+        r_max = (self.params["albedo"] - 0.01) / 0.16
+        s.invalidate(grazing | (z * s.ray_norm > r_max), "dropout")
 
 
 class DisparityQuantisation(Effect):
@@ -398,12 +422,12 @@ class DisparityQuantisation(Effect):
     PARAMS = {"step_px": Param(0.125, 1e-4, 1.0)}
 
     def apply(self, s, rng):
+        from vhgen.sensor.kernels import quantise_inplace
+
         d = s.to_disparity()
-        step = self.params["step_px"]
-        idx = np.flatnonzero(s.valid)
-        flat = d.reshape(-1)
-        flat[idx] = np.floor(flat[idx] / step + 0.5) * step
-        s.invalidate(d <= 0, "noise")
+        lost = quantise_inplace(d, s.valid, self.params["step_px"])
+        if lost.any():
+            s.holes["noise"] = s.holes.get("noise", np.zeros_like(lost)) | lost
 
 
 class Encode(Effect):

@@ -6,7 +6,7 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath=True)
 def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragma: no cover
     """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
 
@@ -18,55 +18,117 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats its
     own disparity to every pixel within ``splat_r`` px, where the splat weight 1 / (1 + r^2)
     beats what the pixel already holds. Pixels no accepted dot reaches are holes.
-    Returns (d_out, valid_out).
+    Window counts and sums come from summed-area tables (O(1) per pixel); the inlier scan
+    stops as soon as the verdict is certain. Returns (d_out, valid_out).
     """
     h, w = d.shape
+    # summed-area tables of dots, valid dots and their disparities
+    sd = np.zeros((h + 1, w + 1), dtype=np.int32)
+    sv = np.zeros((h + 1, w + 1), dtype=np.int32)
+    ss = np.zeros((h + 1, w + 1))
+    dv = np.zeros((h, w), dtype=np.bool_)  # a valid dot
+    for y in range(h):
+        rd = 0
+        rv = 0
+        rs = 0.0
+        for x in range(w):
+            if dots[y, x]:
+                rd += 1
+                if valid[y, x]:
+                    dv[y, x] = True
+                    rv += 1
+                    rs += d[y, x]
+            sd[y + 1, x + 1] = sd[y, x + 1] + rd
+            sv[y + 1, x + 1] = sv[y, x + 1] + rv
+            ss[y + 1, x + 1] = ss[y, x + 1] + rs
+    # nxt[y, x]: first column >= x of row y holding a valid dot (w if none): the inlier
+    # scan jumps from dot to dot instead of visiting every window cell
+    nxt = np.empty((h, w + 1), dtype=np.int32)
+    for y in range(h):
+        nxt[y, w] = w
+        for x in range(w - 1, -1, -1):
+            nxt[y, x] = x if dv[y, x] else nxt[y, x + 1]
+    n = 2 * half + 1
+    thr = np.empty((n, n))  # |d - m| < thr[j, i]  <=>  |d - m| * w(i, j) < inlier_px
+    for j in range(-half, half + 1):
+        for i in range(-half, half + 1):
+            if i == 0 and j == 0:
+                thr[j + half, i + half] = inlier_px
+            else:
+                thr[j + half, i + half] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
     out = np.zeros((h, w))
     best = np.zeros((h, w))
+    outf = out.reshape(-1)
+    bestf = best.reshape(-1)
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
+    # splat footprint: offsets within the radius and their weights 1 / (1 + r^2)
+    m = 0
+    for j in range(-r, r + 1):
+        for i in range(-r, r + 1):
+            if i * i + j * j <= r2max:
+                m += 1
+    oy = np.empty(m, dtype=np.int64)
+    ox = np.empty(m, dtype=np.int64)
+    of = np.empty(m, dtype=np.int64)
+    ow = np.empty(m)
+    m = 0
+    for j in range(-r, r + 1):
+        for i in range(-r, r + 1):
+            if i * i + j * j <= r2max:
+                oy[m] = j
+                ox[m] = i
+                of[m] = j * w + i
+                ow[m] = 1.0 / (1.0 + i * i + j * j)
+                m += 1
     for y in range(half, h - half):
+        y0 = y - half
+        y1 = y + half + 1
         for x in range(half, w - half):
-            if not (dots[y, x] and valid[y, x]):
+            if not dv[y, x]:
                 continue
-            n_dots = 0
-            n_valid = 0
-            s = 0.0
-            for j in range(-half, half + 1):
-                for i in range(-half, half + 1):
-                    if dots[y + j, x + i]:
-                        n_dots += 1
-                        if valid[y + j, x + i]:
-                            n_valid += 1
-                            s += d[y + j, x + i]
-            if n_valid <= frac * n_dots:
+            x0 = x - half
+            x1 = x + half + 1
+            n_dots = sd[y1, x1] - sd[y0, x1] - sd[y1, x0] + sd[y0, x0]
+            n_valid = sv[y1, x1] - sv[y0, x1] - sv[y1, x0] + sv[y0, x0]
+            need = frac * n_dots
+            if n_valid <= need:
                 continue
-            mean = s / n_valid
+            mean = (ss[y1, x1] - ss[y0, x1] - ss[y1, x0] + ss[y0, x0]) / n_valid
             inl = 0
-            for j in range(-half, half + 1):
-                for i in range(-half, half + 1):
-                    if dots[y + j, x + i] and valid[y + j, x + i]:
-                        if i == 0 and j == 0:
-                            wt = 1.0
-                        else:
-                            wt = 1.0 / ((1.2 * i) ** 2 + (1.2 * j) ** 2)
-                        if abs(d[y + j, x + i] - mean) * wt < inlier_px:
-                            inl += 1
-            if inl <= frac * n_dots:
+            left = n_valid
+            accepted = False
+            for j in range(n):
+                yy = y0 + j
+                xx = nxt[yy, x0]
+                while xx < x1:
+                    left -= 1
+                    if abs(d[yy, xx] - mean) < thr[j, xx - x0]:
+                        inl += 1
+                        if inl > need:
+                            accepted = True
+                            break
+                    elif inl + left <= need:
+                        break
+                    xx = nxt[yy, xx + 1]
+                if accepted or inl + left <= need:
+                    break
+            if not accepted:
                 continue
             dc = d[y, x]
-            for j in range(-r, r + 1):
-                yy = y + j
-                if yy < 0 or yy >= h:
-                    continue
-                for i in range(-r, r + 1):
-                    xx = x + i
-                    rr = i * i + j * j
-                    if xx < 0 or xx >= w or rr > r2max:
-                        continue
-                    wt = 1.0 / (1.0 + rr)
-                    if wt > best[yy, xx]:
-                        best[yy, xx] = wt
+            c = y * w + x
+            if r <= y < h - r and r <= x < w - r:
+                for k in range(m):
+                    p = c + of[k]
+                    if ow[k] > bestf[p]:
+                        bestf[p] = ow[k]
+                        outf[p] = dc
+            else:
+                for k in range(m):
+                    yy = y + oy[k]
+                    xx = x + ox[k]
+                    if 0 <= yy < h and 0 <= xx < w and ow[k] > best[yy, xx]:
+                        best[yy, xx] = ow[k]
                         out[yy, xx] = dc
     return out, best > 0.0
 
@@ -102,3 +164,195 @@ def screen_space_shadow(d, valid, projector_right):  # pragma: no cover
                     else:
                         run = up
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def invert_inplace(a, valid, fb):  # pragma: no cover
+    """a <- fb / a where valid, 0 elsewhere (depth <-> disparity), in place."""
+    f = a.reshape(-1)
+    v = valid.reshape(-1)
+    for i in range(f.size):
+        f[i] = fb / f[i] if v[i] else 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def add_noise_inplace(a, valid, draws, table, sigma):  # pragma: no cover
+    """a += sigma * N(0, 1) where valid; N from a uint16 draw through an inverse-CDF table."""
+    f = a.reshape(-1)
+    v = valid.reshape(-1)
+    for i in range(f.size):
+        if v[i]:
+            f[i] += sigma * table[draws[i]]
+
+
+@numba.njit(cache=True, nogil=True)
+def add_noise_sigma_inplace(a, valid, draws, table, sigma):  # pragma: no cover
+    """a += sigma[i] * N(0, 1) where valid (per-pixel sigma)."""
+    f = a.reshape(-1)
+    v = valid.reshape(-1)
+    s = sigma.reshape(-1)
+    for i in range(f.size):
+        if v[i]:
+            f[i] += s[i] * table[draws[i]]
+
+
+@numba.njit(cache=True, nogil=True)
+def quantise_inplace(d, valid, step):  # pragma: no cover
+    """d <- floor(d / step + 0.5) * step where valid; pixels ending at d <= 0 turn invalid.
+    Returns the bool mask of those pixels."""
+    f = d.reshape(-1)
+    v = valid.reshape(-1)
+    lost = np.zeros(f.size, dtype=np.bool_)
+    for i in range(f.size):
+        if v[i]:
+            q = np.floor(f[i] / step + 0.5) * step
+            if q <= 0.0:
+                lost[i] = True
+                v[i] = False
+                f[i] = 0.0
+            else:
+                f[i] = q
+    return lost.reshape(d.shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def lateral_indices(draws, table, sigma, h, w):  # pragma: no cover
+    """Flat source index of every pixel displaced by (sigma * N, sigma * N), nearest pixel,
+    clamped to the image (sigma scalar or (H, W)); ``draws`` uint32, one per pixel, whose
+    low and high 16 bits index the inverse-CDF table for x and y."""
+    out = np.empty(h * w, dtype=np.int64)
+    sflat = sigma.reshape(-1)
+    per_pixel = sflat.size == h * w
+    for y in range(h):
+        for x in range(w):
+            i = y * w + x
+            s = sflat[i] if per_pixel else sflat[0]
+            xx = int(np.floor(x + s * table[draws[i] & 0xFFFF] + 0.5))
+            yy = int(np.floor(y + s * table[draws[i] >> 16] + 0.5))
+            xx = min(max(xx, 0), w - 1)
+            yy = min(max(yy, 0), h - 1)
+            out[i] = yy * w + xx
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def incidence_cos(normals, rays_unit):  # pragma: no cover
+    """|n . ray| per pixel (normals (H, W, 3), unit rays (H, W, 3))."""
+    h, w, _ = normals.shape
+    out = np.empty((h, w))
+    for y in range(h):
+        for x in range(w):
+            s = 0.0
+            for c in range(3):
+                s += normals[y, x, c] * rays_unit[y, x, c]
+            out[y, x] = abs(s)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def dots_from_pattern(d, valid, pattern, pad):  # pragma: no cover
+    """Pixels a projector dot lands on: pattern[v, round(u - d) + pad] (rectified rig)."""
+    h, w = d.shape
+    pw = pattern.shape[1]
+    out = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                up = int(np.floor(x - d[y, x] + 0.5)) + pad
+                if 0 <= up < pw:
+                    out[y, x] = pattern[y, up]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def encode_mm(z, valid):  # pragma: no cover
+    """Planar depth (m) -> uint16 mm rounded half up; 0 where invalid or > 65.535 m."""
+    h, w = z.shape
+    out = np.zeros((h, w), dtype=np.uint16)
+    ok = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                mm = np.floor(z[y, x] * 1000.0 + 0.5)
+                if 1.0 <= mm <= 65535.0:
+                    out[y, x] = np.uint16(mm)
+                    ok[y, x] = True
+    return out, ok
+
+
+@numba.njit(cache=True, nogil=True)
+def gather_state(idx, z, valid, normals, labels):  # pragma: no cover
+    """z, valid, normals, labels re-sampled at flat source indices ``idx`` in one pass
+    (normals and labels may be empty arrays when absent)."""
+    h, w = z.shape
+    zf = z.reshape(-1)
+    vf = valid.reshape(-1)
+    z2 = np.empty(h * w)
+    v2 = np.empty(h * w, dtype=np.bool_)
+    has_n = normals.size == h * w * 3
+    has_l = labels.size == h * w
+    n2 = np.empty((h * w, 3), dtype=normals.dtype) if has_n else normals.reshape(-1, 3)
+    l2 = np.empty(h * w, dtype=labels.dtype) if has_l else labels.reshape(-1)
+    nf = normals.reshape(-1, 3)
+    lf = labels.reshape(-1)
+    for i in range(h * w):
+        k = idx[i]
+        z2[i] = zf[k]
+        v2[i] = vf[k]
+        if has_n:
+            n2[i, 0] = nf[k, 0]
+            n2[i, 1] = nf[k, 1]
+            n2[i, 2] = nf[k, 2]
+        if has_l:
+            l2[i] = lf[k]
+    return z2.reshape(h, w), v2.reshape(h, w), n2, l2
+
+
+@numba.njit(cache=True, nogil=True)
+def encode_raw11(d, ok, d_off):  # pragma: no cover
+    """k_d = round_half_up(d_off - 8 d), 2047 where invalid or outside 0..2046."""
+    h, w = d.shape
+    out = np.full((h, w), 2047, dtype=np.uint16)
+    for y in range(h):
+        for x in range(w):
+            if ok[y, x]:
+                k = np.floor(d_off - 8.0 * d[y, x] + 0.5)
+                if 0.0 <= k <= 2046.0:
+                    out[y, x] = np.uint16(k)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def sanitise(depth):  # pragma: no cover
+    """Planar depth -> (float64 copy with 0 where no hit, hit mask); NaN, inf, <= 0 = no hit."""
+    h, w = depth.shape
+    z = np.zeros((h, w))
+    hit = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            v = np.float64(depth[y, x])
+            if v > 0.0 and v < np.inf:
+                z[y, x] = v
+                hit[y, x] = True
+    return z, hit
+
+
+@numba.njit(cache=True, nogil=True)
+def finish(a, valid, fb, is_disparity):  # pragma: no cover
+    """One pass to the outputs: uint16 mm (rounded half up, 0 = none, > 65.535 m invalid),
+    the final valid mask and the disparity (0 where invalid), from depth or disparity."""
+    h, w = a.shape
+    mm_out = np.zeros((h, w), dtype=np.uint16)
+    ok = np.zeros((h, w), dtype=np.bool_)
+    disp = np.zeros((h, w))
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                v = a[y, x]
+                z = fb / v if is_disparity else v
+                mm = np.floor(z * 1000.0 + 0.5)
+                if 1.0 <= mm <= 65535.0:
+                    mm_out[y, x] = np.uint16(mm)
+                    ok[y, x] = True
+                    disp[y, x] = v if is_disparity else fb / v
+    return mm_out, ok, disp

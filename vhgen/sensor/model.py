@@ -29,7 +29,11 @@ import numpy as np
 from vhgen.camera import Intrinsics
 from vhgen.errors import ConfigError
 from vhgen.sensor.effects import EFFECTS, HOLE_CAUSES, Effect, SensorState
+from vhgen.sensor.structured_light import StructuredLight
 from vhgen.yamlio import check_keys, find_config, load_yaml
+
+# the reference path is an effect like the others (registered here: it imports effects)
+EFFECTS[StructuredLight.NAME] = StructuredLight
 
 PATTERN_PAD = 160  # projector columns beyond each image side (disparities up to 160 px)
 
@@ -140,6 +144,11 @@ class SensorModel:
         self.cfg = cfg
         intr = cfg.intrinsics
         self.pattern = dot_pattern(cfg.pattern_seed, intr.height, intr.width, cfg.dot_density)
+        from vhgen.camera import pixel_rays
+
+        rays = pixel_rays(intr)
+        self.ray_norm = np.linalg.norm(rays, axis=-1)
+        self.rays_unit = np.ascontiguousarray(rays / self.ray_norm[..., None])
 
     def dots(self, d: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """Where pattern dots land in the camera image: pixel u sees projector column u - d."""
@@ -158,7 +167,7 @@ class SensorModel:
         otherwise. Raises ValueError when an input an effect needs is missing.
         """
         cfg = self.cfg
-        z = np.asarray(depth, dtype=np.float64)
+        z = np.ascontiguousarray(depth)
         if z.shape != (cfg.intrinsics.height, cfg.intrinsics.width):
             raise ValueError(f"depth {z.shape} does not match the sensor "
                              f"{cfg.intrinsics.height}x{cfg.intrinsics.width}")
@@ -169,22 +178,23 @@ class SensorModel:
             raise ValueError(f"sensor {cfg.name} needs a projector-view depth image")
         if any(e.RANDOM for e in cfg.effects) and rng is None:
             raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
-        hit = np.isfinite(z) & (z > 0)
-        z = np.where(hit, z, 0.0)
+        from vhgen.sensor.kernels import finish, sanitise
+
+        z, hit = sanitise(z)  # a fresh array: effects may work in place
         s = SensorState(cfg.intrinsics, cfg.baseline_m, z, hit, labels=labels, normals=normals,
-                        projector_depth=projector_depth, dots=self.dots)
+                        projector_depth=projector_depth, dots=self.dots,
+                        pattern=self.pattern, rays_unit=self.rays_unit,
+                        ray_norm=self.ray_norm)
         s.holes["no_hit"] = ~hit
         for e in cfg.effects:
             e.apply(s, rng)
-        d = s.to_disparity().copy()
-        zf = s.to_depth()
-        mm = np.floor(zf * 1000.0 + 0.5)
-        ok = s.valid & (mm >= 1) & (mm <= 65535)
-        depth_mm = np.where(ok, mm, 0).astype(np.uint16)
+        in_d = s.domain == "d"
+        depth_mm, ok, d = finish(s.d if in_d else s.z, s.valid, s.fb, in_d)
         enc = cfg.effect("encode")
         raw = None
         if enc is not None and enc.params["raw11"]:
-            k = np.floor(enc.params["d_off"] - 8.0 * d + 0.5)
-            raw = np.where(ok & (k >= 0) & (k <= 2046), k, 2047).astype(np.uint16)
-        holes = {c: int(m.sum()) for c, m in s.holes.items() if c in HOLE_CAUSES}
-        return SensorOutput(depth_mm, ok, s.labels, raw, np.where(ok, d, 0.0), holes)
+            from vhgen.sensor.kernels import encode_raw11
+
+            raw = encode_raw11(d, ok, enc.params["d_off"])
+        holes = {c: int(np.count_nonzero(m)) for c, m in s.holes.items() if c in HOLE_CAUSES}
+        return SensorOutput(depth_mm, ok, s.labels, raw, d, holes)
