@@ -131,6 +131,11 @@ class Effect:
     def needs(self) -> frozenset[str]:
         return self.NEEDS
 
+    @property
+    def random(self) -> bool:
+        """Whether this configured effect draws random numbers."""
+        return self.RANDOM
+
     def to_dict(self) -> dict:
         return {self.NAME: dict(self.params)}
 

@@ -176,7 +176,7 @@ class SensorModel:
             raise ValueError(f"sensor {cfg.name} needs normals")
         if "projector_depth" in need and projector_depth is None:
             raise ValueError(f"sensor {cfg.name} needs a projector-view depth image")
-        if any(e.RANDOM for e in cfg.effects) and rng is None:
+        if any(e.random for e in cfg.effects) and rng is None:
             raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
         from vhgen.sensor.kernels import finish, sanitise
 

@@ -114,7 +114,10 @@ class StructuredLight(Effect):
               "d_min_px": Param(7.0, 0.0, 200.0), "min_zncc": Param(0.5, -1.0, 1.0),
               "albedo": Param(1.0, 0.0, 1.0), "ir_noise": Param(True)}
     NEEDS = frozenset({"projector_depth", "normals"})
-    RANDOM = True
+
+    @property
+    def random(self) -> bool:
+        return bool(self.params["ir_noise"])
 
     def apply(self, s, rng):
         from vhgen.sensor.effects import _incidence_cos
