@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.sensor.model import SensorConfig
 from vhgen.yamlio import check_keys, load_yaml
@@ -74,13 +75,7 @@ class AvatarConfig:
 
     count: int = 2
     scale: tuple[float, float] = (1.0, 1.0)
-    gender: tuple[float, float] = (0.0, 1.0)
-    age_years: tuple[float, float] = (18.0, 70.0)
-    muscle: tuple[float, float] = (0.2, 0.8)
-    weight: tuple[float, float] = (0.2, 0.9)
-    height: tuple[float, float] = (0.3, 0.7)  # MakeHuman spans 1.36-2.45 m (young male)
-    proportions: tuple[float, float] = (0.3, 1.0)
-    ethnic_concentration: float = 1.0
+    shape: ShapeSampler = field(default_factory=ShapeSampler)
     tights_probability: float = 0.0
     skirt_probability: float = 0.0
 
@@ -143,23 +138,24 @@ class JobConfig:
                             _num(po, "skip_first", path, "poses.", lo=0, integer=True,
                                  default=0) if "skip_first" in po else 0)
         av = d.get("avatars") or {}
-        ad = AvatarConfig()
+        ad = ShapeSampler()
         check_keys(av, {"count", "scale", "gender", "age_years", "muscle", "weight", "height",
                         "proportions", "ethnic_concentration", "tights_probability",
                         "skirt_probability"}, set(), path, "avatars.")
         unit = {k: _range(av, k, path, "avatars.", getattr(ad, k), lo=0.0, hi=1.0)
                 for k in ("gender", "muscle", "weight", "height", "proportions")}
-        avatars = AvatarConfig(
-            count=_num(av, "count", path, "avatars.", lo=1, hi=100000, integer=True, default=2),
-            scale=_range(av, "scale", path, "avatars.", ad.scale, lo=0.3, hi=2.0),
+        shape = ShapeSampler(
             age_years=_range(av, "age_years", path, "avatars.", ad.age_years, lo=1, hi=90),
             ethnic_concentration=_num(av, "ethnic_concentration", path, "avatars.", lo=1e-3,
-                                      default=ad.ethnic_concentration),
+                                      default=ad.ethnic_concentration), **unit)
+        avatars = AvatarConfig(
+            count=_num(av, "count", path, "avatars.", lo=1, hi=100000, integer=True, default=2),
+            scale=_range(av, "scale", path, "avatars.", (1.0, 1.0), lo=0.3, hi=2.0),
+            shape=shape,
             tights_probability=_num(av, "tights_probability", path, "avatars.", lo=0, hi=1,
-                                    default=ad.tights_probability),
+                                    default=0.0),
             skirt_probability=_num(av, "skirt_probability", path, "avatars.", lo=0, hi=1,
-                                   default=ad.skirt_probability),
-            **unit)
+                                   default=0.0))
         ca = d.get("camera") or {}
         cd = CameraConfig()
         check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m",

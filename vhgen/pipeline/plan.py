@@ -26,13 +26,8 @@ def frame_seed(job_seed: int, avatar_id: int, pose_index: int, camera: int = 0) 
 def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
     """Parameters of one avatar (shape, scale, clothing), drawn from its own seeded stream;
     the body is rebuilt from them exactly (:func:`vhgen.body.model.build_body`)."""
-    from vhgen.body.shape import ShapeSampler
-
     rng = np.random.default_rng(np.random.SeedSequence([job_seed, _AVATAR_STREAM, avatar_id]))
-    sampler = ShapeSampler(gender=cfg.gender, age_years=cfg.age_years, muscle=cfg.muscle,
-                           weight=cfg.weight, height=cfg.height, proportions=cfg.proportions,
-                           ethnic_concentration=cfg.ethnic_concentration)
-    shape = sampler.sample(rng)
+    shape = cfg.shape.sample(rng)
     scale = float(rng.uniform(*cfg.scale))
     clothing = [c for c, p in (("tights", cfg.tights_probability),
                                ("skirt", cfg.skirt_probability)) if rng.uniform() < p]
