@@ -73,14 +73,22 @@ class SensorState:
         """One uint16 draw per pixel, to be mapped through NORMAL_TABLE (fast N(0, 1))."""
         return rng.integers(0, 65536, size=self.valid.size, dtype=np.uint16)
 
+    def record(self, kernel, cause: str) -> None:
+        """Run ``kernel(hole_mask)``, a fused pass that removes pixels itself, marking them
+        in the cause's hole mask; it returns how many it removed."""
+        hole = self.holes.get(cause)
+        if hole is None:
+            hole = np.zeros_like(self.valid)
+        if kernel(hole):
+            self.holes[cause] = hole
+
     def invalidate(self, mask: np.ndarray, cause: str) -> None:
         """Remove ``mask`` pixels (recording why) and zero them in the active domain."""
-        new = mask & self.valid
-        if not new.any():
-            return
-        self.holes[cause] = self.holes.get(cause, np.zeros_like(self.valid)) | new
-        self.valid &= ~new
-        (self.z if self.domain == "z" else self.d)[new] = 0.0
+        from vhgen.sensor.kernels import remove_pixels
+
+        arr = self.z if self.domain == "z" else self.d
+        self.record(lambda hole: remove_pixels(np.ascontiguousarray(mask), self.valid, arr,
+                                               hole), cause)
 
 
 @dataclass(frozen=True)
@@ -170,8 +178,11 @@ class RangeGate(Effect):
             raise ConfigError(None, f"{self.NAME}.z_min_m", "must be below z_max_m")
 
     def apply(self, s, rng):
+        from vhgen.sensor.kernels import gate_inplace
+
         z = s.to_depth()
-        s.invalidate((z < self.params["z_min_m"]) | (z > self.params["z_max_m"]), "range")
+        s.record(lambda hole: gate_inplace(z, s.valid, self.params["z_min_m"],
+                                           self.params["z_max_m"], hole), "range")
 
 
 class LensDistortion(Effect):
@@ -289,14 +300,16 @@ class AxialNoise(Effect):
         return frozenset({"normals"}) if self.params["angle_term"] else frozenset()
 
     def apply(self, s, rng):
-        from vhgen.sensor.kernels import add_noise_inplace, add_noise_sigma_inplace
+        from vhgen.sensor.kernels import add_noise_sigma_inplace
 
         model = self.params["model"]
         if model == "disparity":
+            from vhgen.sensor.kernels import add_noise_drop_inplace
+
             d = s.to_disparity()
-            add_noise_inplace(d, s.valid, s.normal_draws(rng), NORMAL_TABLE,
-                              self.params["sigma_px"])
-            s.invalidate(d <= 0, "noise")
+            draws = s.normal_draws(rng)
+            s.record(lambda hole: add_noise_drop_inplace(d, s.valid, draws, NORMAL_TABLE,
+                                                         self.params["sigma_px"], hole), "noise")
             return
         z = s.to_depth()
         if model == "barron_malik":
@@ -412,11 +425,14 @@ class Dropout(Effect):
     NEEDS = frozenset({"normals"})
 
     def apply(self, s, rng):
+        from vhgen.sensor.kernels import dropout_mask
+
         z = s.to_depth()
-        grazing = _incidence_cos(s) < np.cos(np.deg2rad(self.params["max_angle_deg"]))
         # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16, r = z |ray|
         r_max = (self.params["albedo"] - 0.01) / 0.16
-        s.invalidate(grazing | (z * s.ray_norm > r_max), "dropout")
+        cos_min = np.cos(np.deg2rad(self.params["max_angle_deg"]))
+        s.invalidate(dropout_mask(z, s.valid, np.ascontiguousarray(s.normals), s.rays_unit,
+                                  s.ray_norm, cos_min, r_max), "dropout")
 
 
 class DisparityQuantisation(Effect):

@@ -176,16 +176,6 @@ def invert_inplace(a, valid, fb):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def add_noise_inplace(a, valid, draws, table, sigma):  # pragma: no cover
-    """a += sigma * N(0, 1) where valid; N from a uint16 draw through an inverse-CDF table."""
-    f = a.reshape(-1)
-    v = valid.reshape(-1)
-    for i in range(f.size):
-        if v[i]:
-            f[i] += sigma * table[draws[i]]
-
-
-@numba.njit(cache=True, nogil=True)
 def add_noise_sigma_inplace(a, valid, draws, table, sigma):  # pragma: no cover
     """a += sigma[i] * N(0, 1) where valid (per-pixel sigma)."""
     f = a.reshape(-1)
@@ -265,22 +255,6 @@ def dots_from_pattern(d, valid, pattern, pad):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def encode_mm(z, valid):  # pragma: no cover
-    """Planar depth (m) -> uint16 mm rounded half up; 0 where invalid or > 65.535 m."""
-    h, w = z.shape
-    out = np.zeros((h, w), dtype=np.uint16)
-    ok = np.zeros((h, w), dtype=np.bool_)
-    for y in range(h):
-        for x in range(w):
-            if valid[y, x]:
-                mm = np.floor(z[y, x] * 1000.0 + 0.5)
-                if 1.0 <= mm <= 65535.0:
-                    out[y, x] = np.uint16(mm)
-                    ok[y, x] = True
-    return out, ok
-
-
-@numba.njit(cache=True, nogil=True)
 def gather_state(idx, z, valid, normals, labels):  # pragma: no cover
     """z, valid, normals, labels re-sampled at flat source indices ``idx`` in one pass
     (normals and labels may be empty arrays when absent)."""
@@ -356,3 +330,71 @@ def finish(a, valid, fb, is_disparity):  # pragma: no cover
                     ok[y, x] = True
                     disp[y, x] = v if is_disparity else fb / v
     return mm_out, ok, disp
+
+
+@numba.njit(cache=True, nogil=True)
+def remove_pixels(mask, valid, arr, hole):  # pragma: no cover
+    """One pass: pixels in ``mask`` that are still valid become invalid, get 0 in ``arr`` and
+    are marked in ``hole``. Returns how many were removed."""
+    m = mask.reshape(-1)
+    v = valid.reshape(-1)
+    a = arr.reshape(-1)
+    hl = hole.reshape(-1)
+    n = 0
+    for i in range(m.size):
+        if m[i] and v[i]:
+            v[i] = False
+            a[i] = 0.0
+            hl[i] = True
+            n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def dropout_mask(z, valid, normals, rays_unit, ray_norm, cos_min, r_max):  # pragma: no cover
+    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) pixels."""
+    h, w = z.shape
+    out = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if valid[y, x]:
+                c = abs(normals[y, x, 0] * rays_unit[y, x, 0] + normals[y, x, 1] *
+                        rays_unit[y, x, 1] + normals[y, x, 2] * rays_unit[y, x, 2])
+                out[y, x] = c < cos_min or z[y, x] * ray_norm[y, x] > r_max
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def gate_inplace(z, valid, z_min, z_max, hole):  # pragma: no cover
+    """Range gating in one pass: valid pixels outside [z_min, z_max] become holes."""
+    zf = z.reshape(-1)
+    v = valid.reshape(-1)
+    hl = hole.reshape(-1)
+    n = 0
+    for i in range(zf.size):
+        if v[i] and (zf[i] < z_min or zf[i] > z_max):
+            v[i] = False
+            zf[i] = 0.0
+            hl[i] = True
+            n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def add_noise_drop_inplace(a, valid, draws, table, sigma, hole):  # pragma: no cover
+    """a += sigma * N(0, 1) where valid; pixels pushed to a <= 0 become holes (one pass)."""
+    f = a.reshape(-1)
+    v = valid.reshape(-1)
+    hl = hole.reshape(-1)
+    n = 0
+    for i in range(f.size):
+        if v[i]:
+            x = f[i] + sigma * table[draws[i]]
+            if x <= 0.0:
+                v[i] = False
+                f[i] = 0.0
+                hl[i] = True
+                n += 1
+            else:
+                f[i] = x
+    return n
