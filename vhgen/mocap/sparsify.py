@@ -28,10 +28,53 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 ANGLE = "angle"
 POSITION = "position"
+
+
+@numba.njit(cache=True, nogil=True)
+def _close_angle(feats, i, k, cos_thr):  # pragma: no cover
+    """Pairs whose every joint satisfies trace(R_i^T R_k) > 1 + 2 cos(threshold); stops at
+    the first joint that fails (most candidate pairs fail early)."""
+    out = np.zeros(i.size, dtype=np.bool_)
+    nj = feats.shape[1]
+    for p in range(i.size):
+        a = i[p]
+        b = k[p]
+        ok = True
+        for j in range(nj):
+            tr = 0.0
+            for c in range(9):
+                tr += feats[a, j, c] * feats[b, j, c]
+            if not tr > cos_thr:
+                ok = False
+                break
+        out[p] = ok
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _close_position(feats, i, k, d2_thr):  # pragma: no cover
+    """Pairs whose every joint is nearer than the threshold (squared distances)."""
+    out = np.zeros(i.size, dtype=np.bool_)
+    nj = feats.shape[1]
+    for p in range(i.size):
+        a = i[p]
+        b = k[p]
+        ok = True
+        for j in range(nj):
+            d2 = 0.0
+            for c in range(3):
+                e = feats[a, j, c] - feats[b, j, c]
+                d2 += e * e
+            if not d2 < d2_thr:
+                ok = False
+                break
+        out[p] = ok
+    return out
 
 
 @dataclass(frozen=True)
@@ -42,13 +85,11 @@ class _Metric:
 
     def close(self, i: np.ndarray, k: np.ndarray) -> np.ndarray:
         """Exact test for pairs (i[n], k[n]): True where every joint is within threshold."""
-        a = self.features[i]
-        b = self.features[k]
+        i = np.ascontiguousarray(i, dtype=np.int64)
+        k = np.ascontiguousarray(k, dtype=np.int64)
         if self.kind == ANGLE:
-            tr = np.einsum("njm,njm->nj", a, b)  # trace(A^T B) per joint
-            return np.all(tr > 1.0 + 2.0 * np.cos(self.threshold), axis=1)
-        d2 = np.einsum("njm,njm->nj", a - b, a - b)
-        return np.all(d2 < self.threshold * self.threshold, axis=1)
+            return _close_angle(self.features, i, k, 1.0 + 2.0 * np.cos(self.threshold))
+        return _close_position(self.features, i, k, self.threshold * self.threshold)
 
     @property
     def radius(self) -> float:
@@ -65,13 +106,13 @@ def _metric(poses: np.ndarray, threshold: float, metric: str) -> _Metric:
             raise ValueError(f"angle metric needs (N, J, 3, 3) rotations, got {poses.shape}")
         if not 0 < threshold < np.pi:
             raise ValueError(f"angle threshold must be in (0, pi) radians, got {threshold}")
-        feats = poses.reshape(poses.shape[0], poses.shape[1], 9)
+        feats = np.ascontiguousarray(poses.reshape(poses.shape[0], poses.shape[1], 9))
     elif metric == POSITION:
         if poses.ndim != 3 or poses.shape[-1] != 3:
             raise ValueError(f"position metric needs (N, J, 3) positions, got {poses.shape}")
         if not threshold > 0:
             raise ValueError(f"position threshold must be > 0, got {threshold}")
-        feats = poses
+        feats = np.ascontiguousarray(poses)
     else:
         raise ValueError(f"unknown metric {metric!r}")
     if not np.isfinite(feats).all():
@@ -80,17 +121,33 @@ def _metric(poses: np.ndarray, threshold: float, metric: str) -> _Metric:
 
 
 def sparsify_naive(poses: np.ndarray, threshold: float, metric: str = ANGLE) -> np.ndarray:
-    """The obvious greedy loop (reference): indices of kept poses, in order.
+    """The obvious greedy loop in NumPy (the reference): indices of kept poses, in order.
 
+    Each pose is compared with every kept pose at once (einsum over joints), with the same
+    closeness test as :func:`sparsify`.
     poses : (N, J, 3, 3) rotations for ``angle`` (threshold in radians), or (N, J, 3)
     positions for ``position`` (threshold in the positions' unit).
     """
     m = _metric(poses, threshold, metric)
-    kept: list[int] = []
-    for i in range(m.features.shape[0]):
-        if not kept or not m.close(np.full(len(kept), i), np.asarray(kept)).any():
-            kept.append(i)
-    return np.asarray(kept, dtype=np.int64)
+    f = m.features
+    kept = np.empty(f.shape, dtype=f.dtype)
+    n = 0
+    cos_thr = 1.0 + 2.0 * np.cos(m.threshold)
+    d2_thr = m.threshold * m.threshold
+    out = []
+    for i in range(f.shape[0]):
+        if n:
+            if m.kind == ANGLE:
+                close = np.all(np.einsum("jm,kjm->kj", f[i], kept[:n]) > cos_thr, axis=1)
+            else:
+                diff = kept[:n] - f[i]
+                close = np.all(np.einsum("kjm,kjm->kj", diff, diff) < d2_thr, axis=1)
+            if close.any():
+                continue
+        kept[n] = f[i]
+        n += 1
+        out.append(i)
+    return np.asarray(out, dtype=np.int64)
 
 
 class _Forest:
@@ -122,17 +179,24 @@ class _Forest:
         return np.concatenate(rows), np.concatenate(ids)
 
 
-def _greedy_in_batch(size: int, pairs: np.ndarray, dropped: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True, nogil=True)
+def _greedy_in_batch(size, pairs, dropped):  # pragma: no cover
     """In-order greedy inside one batch: b is kept unless ``dropped[b]`` or an earlier kept
-    a has (a, b) in ``pairs`` (rows (a, b), a < b, sorted by b)."""
+    a has (a, b) in ``pairs`` (rows (a, b), a < b, sorted by b then a)."""
     keep = ~dropped
-    if len(pairs) == 0:
-        return keep
-    bs = pairs[:, 1]
-    starts = np.searchsorted(bs, np.arange(size + 1))
-    for b in np.unique(bs):
-        if keep[b] and keep[pairs[starts[b]:starts[b + 1], 0]].any():
-            keep[b] = False
+    p = 0
+    n = pairs.shape[0]
+    while p < n:
+        b = pairs[p, 1]
+        q = p
+        while q < n and pairs[q, 1] == b:
+            q += 1
+        if keep[b]:
+            for r in range(p, q):
+                if keep[pairs[r, 0]]:
+                    keep[b] = False
+                    break
+        p = q
     return keep
 
 
@@ -166,6 +230,7 @@ def sparsify(poses: np.ndarray, threshold: float, metric: str = ANGLE, *,
         idx = np.arange(start, min(start + batch, n))
         # close pairs inside the batch (a < b), exact, sorted by b
         pairs = cKDTree(emb[idx], leafsize=32).query_pairs(r, p=np.inf, output_type="ndarray")
+        pairs = pairs.astype(np.int64).reshape(-1, 2)
         if len(pairs):
             pairs = np.sort(pairs, axis=1)
             pairs = pairs[m.close(idx[pairs[:, 0]], idx[pairs[:, 1]])]
