@@ -160,3 +160,41 @@ def test_generate_from_pose_table(tmp_path, shared_mocap, asset_dir):
     assert man.column("motion_file").to_pylist() == table.source_file
     assert man.column("source_frame").to_pylist() == table.source_frame.tolist()
     assert min(man.column("body_pixels").to_pylist()) > 5000
+
+
+def test_resume_finishes_an_interrupted_run(smoke, shared_mocap):
+    """A run cut short (shard 1's manifest part never written, a stray partial file left):
+    --resume redoes only what is missing and ends with the same bytes."""
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    tmp, cfg, _ = smoke
+    cut = tmp / "cut.zarr"
+    shutil.copytree(tmp / "two.zarr", cut)
+    (cut / "manifest" / "part-000001.parquet").unlink()
+    (cut / "manifest.parquet").unlink()
+    (cut / "depth" / "c" / "stray.partial").parent.mkdir(parents=True, exist_ok=True)
+    (cut / "depth" / "c" / "stray.partial").write_bytes(b"junk")
+    summary = run_job(cfg, cut, resume=True)
+    assert summary["written"] == 1  # only the incomplete shard was redone
+    assert not list(cut.rglob("*.partial"))
+    a, b = _store_files(tmp / "two.zarr"), _store_files(cut)
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+    man = pq.read_table(cut / "manifest.parquet")
+    assert man.column("frame").to_pylist() == list(range(10))
+    with pytest.raises(Exception, match="exists"):
+        run_job(cfg, cut)  # neither resume nor overwrite: refuse to clobber
+
+
+def test_cli_info_and_preview(smoke, tmp_path, capsys):
+    from vhgen.cli import main
+
+    store = smoke[0] / "two.zarr"
+    assert main(["info", str(store)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["depth"] == [10, 480, 640] and info["manifest_rows"] == 10
+    assert main(["preview", str(store), "-o", str(tmp_path / "p.png"), "--frames", "0,9"]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+    assert main(["info", str(tmp_path)]) == 2  # not a store: a clear error, exit 2
+    assert "not a Zarr v3 group" in capsys.readouterr().err
