@@ -37,7 +37,6 @@ class SensorState:
     holes: dict = field(default_factory=dict)  # cause -> bool mask of pixels it removed
     rays_unit: np.ndarray | None = None  # (H, W, 3) unit viewing rays (cached per sensor)
     ray_norm: np.ndarray | None = None  # (H, W) |ray| for z = 1
-    dots: object = None  # callable (d, valid) -> bool (H, W): a dot lands on the pixel
     pattern: np.ndarray | None = None  # the projector's binary dot pattern
 
     @property

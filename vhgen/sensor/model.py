@@ -150,14 +150,6 @@ class SensorModel:
         self.ray_norm = np.linalg.norm(rays, axis=-1)
         self.rays_unit = np.ascontiguousarray(rays / self.ray_norm[..., None])
 
-    def dots(self, d: np.ndarray, valid: np.ndarray) -> np.ndarray:
-        """Where pattern dots land in the camera image: pixel u sees projector column u - d."""
-        h, w = d.shape
-        up = np.rint(np.arange(w)[None, :] - d).astype(np.int64) + PATTERN_PAD
-        inside = valid & (up >= 0) & (up < self.pattern.shape[1])
-        rows = np.broadcast_to(np.arange(h)[:, None], (h, w))
-        return inside & self.pattern[rows, np.clip(up, 0, self.pattern.shape[1] - 1)]
-
     def simulate(self, depth: np.ndarray, rng: np.random.Generator | None, *,
                  labels: np.ndarray | None = None, normals: np.ndarray | None = None,
                  projector_depth: np.ndarray | None = None) -> SensorOutput:
@@ -182,9 +174,8 @@ class SensorModel:
 
         z, hit = sanitise(z)  # a fresh array: effects may work in place
         s = SensorState(cfg.intrinsics, cfg.baseline_m, z, hit, labels=labels, normals=normals,
-                        projector_depth=projector_depth, dots=self.dots,
-                        pattern=self.pattern, rays_unit=self.rays_unit,
-                        ray_norm=self.ray_norm)
+                        projector_depth=projector_depth, pattern=self.pattern,
+                        rays_unit=self.rays_unit, ray_norm=self.ray_norm)
         s.holes["no_hit"] = ~hit
         for e in cfg.effects:
             e.apply(s, rng)
