@@ -13,7 +13,7 @@ from typing import Any
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.sensor.model import SensorConfig
-from vhgen.yamlio import check_keys, load_yaml
+from vhgen.yamlio import check_keys, find_config, load_yaml
 
 BUILTIN_MOTION = "builtin:demo"
 
@@ -111,7 +111,9 @@ class JobConfig:
 
     @classmethod
     def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
-        path = Path(path)
+        """A scene config by path, or by name from the shipped ``configs/scenes``
+        (``default``); ``overrides`` (num_workers, backend) replace the file's values."""
+        path = find_config("scenes", path)
         d = load_yaml(path)
         top = {"name", "seed", "motions", "retarget", "labels", "sensor", "assets", "poses",
                "avatars", "camera", "output", "render", "num_workers", "description"}
