@@ -148,7 +148,7 @@ def existing_file(*suffixes: str) -> ArgType:
 
 def output_path(*suffixes: str) -> ArgType:
     """A path to write: a name ending in ``suffixes`` (if given) in a writable folder."""
-    bad = ["", "/proc/vhgen/x" + (suffixes[0] if suffixes else "")]
+    bad = ["", "/etc/hostname/x" + (suffixes[0] if suffixes else "")]
     if suffixes:
         bad.append("out.unknownsuffix")
     return ArgType("output", _output(suffixes), "out" + (suffixes[0] if suffixes else ""), bad)
