@@ -321,7 +321,10 @@ def setup_logging(quiet: bool, verbose: bool) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as e:  # bad arguments (one line already printed), or --help
+        return e.code if isinstance(e.code, int) else 2
     args.quiet = getattr(args, "quiet", False)
     args.verbose = getattr(args, "verbose", False)
     if args.quiet and args.verbose:

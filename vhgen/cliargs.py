@@ -124,7 +124,9 @@ def _output(suffixes: tuple[str, ...]) -> Callable[[str], str]:
         if not anc.is_dir():
             raise argparse.ArgumentTypeError(f"{text}: {anc} is not a folder")
         if not os.access(anc, os.W_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(f"{text}: folder {anc} is not writable")
+            ro = bool(os.statvfs(anc).f_flag & os.ST_RDONLY)
+            raise argparse.ArgumentTypeError(f"{text}: folder {anc} is not writable"
+                                             f"{' (read-only file system)' if ro else ''}")
         return str(p)
 
     return convert

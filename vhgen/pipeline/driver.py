@@ -221,6 +221,8 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     t0 = time.perf_counter()
     out = Path(out)
     check_output(out, resume=resume, overwrite=overwrite)
+    if resume and (out / "zarr.json").is_file():
+        _check_same_config(out, _config_attrs(cfg, LabelScheme.load(cfg.labels)))
     address = ray_address or os.environ.get("RAY_ADDRESS")
     _ray_env(local=not address)
     import ray
@@ -308,31 +310,13 @@ def _loaded(actor, refs: list, plan: Plan):
 
 def _open_store(cfg: JobConfig, out: Path, p: _Prepared, resume: bool) -> None:
     """Create the store, or check that the one to resume was made by the same config."""
-    plan, scheme = p.plan, p.scheme
+    plan = p.plan
     intr = cfg.sensor.intrinsics
-    attrs = {
-        "vhgen_version": __version__,
-        "config_name": cfg.name,
-        "seed": cfg.seed,
-        "label_scheme": scheme.name,
-        "label_names": scheme.names,
-        "label_colors": scheme.palette.tolist(),
-        "rig_bones": p.rig_bones,
-        "sensor": cfg.sensor.to_dict(),
-        "depth_units": "millimetre (uint16), 0 = no measurement",
-        "frames_per_shard": cfg.frames_per_shard,
-        "num_frames": plan.num_frames,
-        "motions": p.poses.report,
-    }
+    attrs = {**_config_attrs(cfg, p.scheme), "rig_bones": p.rig_bones,
+             "num_frames": plan.num_frames, "motions": p.poses.report}
     try:
         if resume and (out / "zarr.json").is_file():
-            old = read_attrs(out)
-            for k in _RESUME_KEYS:
-                if json.dumps(old.get(k), sort_keys=True) != json.dumps(attrs[k],
-                                                                        sort_keys=True):
-                    raise StoreError(f"{out}: made by another config ({k!r} differs: store "
-                                     f"{_short(old.get(k))}, config {_short(attrs[k])}); "
-                                     "cannot resume it (use another --out or --overwrite)")
+            _check_same_config(out, attrs)
             n_clean = clean_partials(out)
             if n_clean:
                 log.warning("removed %d partial files left by a killed writer", n_clean)
@@ -344,6 +328,32 @@ def _open_store(cfg: JobConfig, out: Path, p: _Prepared, resume: bool) -> None:
                          overwrite=True, raw11=bool(enc is not None and enc.params["raw11"]))
     except OSError as e:
         raise StoreError(_os_error_line(e, out, "cannot create the store")) from None
+
+
+def _config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict:
+    """The store attributes that follow from the config alone."""
+    return {
+        "vhgen_version": __version__,
+        "config_name": cfg.name,
+        "seed": cfg.seed,
+        "label_scheme": scheme.name,
+        "label_names": scheme.names,
+        "label_colors": scheme.palette.tolist(),
+        "sensor": cfg.sensor.to_dict(),
+        "depth_units": "millimetre (uint16), 0 = no measurement",
+        "frames_per_shard": cfg.frames_per_shard,
+    }
+
+
+def _check_same_config(out: Path, attrs: dict) -> None:
+    """Refuse to resume a store made by another config (the keys present in ``attrs``)."""
+    old = read_attrs(out)
+    for k in _RESUME_KEYS:
+        if k in attrs and json.dumps(old.get(k), sort_keys=True) != json.dumps(
+                attrs[k], sort_keys=True):
+            raise StoreError(f"{out}: made by another config ({k!r} differs: store "
+                             f"{_short(old.get(k))}, config {_short(attrs[k])}); "
+                             "cannot resume it (use another --out or --overwrite)")
 
 
 def _short(v: Any) -> str:
