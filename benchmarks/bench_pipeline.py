@@ -11,7 +11,15 @@ and noisy: compare the ratios, not the absolute numbers across runs):
 * sensor: gating, noise, 1/8 px quantisation, uint16 mm encoding;
 * write: one Zarr shard of uint16 depth + uint8 labels (zstd) + its manifest part;
 * end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
-  and the same without start-up (render phase only).
+  and the same without start-up (render phase only);
+* fixed cost (``--startup`` runs only this): the wall time of a job with zero frames, i.e.
+  the intercept ``a`` of ``T(N) = a + b N`` through two runs of the same job (same
+  workers) that differ only in their number of frames, N set through ``poses.frame_step``
+  (default: frame steps 8 and 2 of the default config, 60 and 240 frames); ``b`` is the
+  steady time per frame. It counts Ray start, actor set-up, kernel loading, planning,
+  the merge and Ray shutdown: everything that does not grow with the frames. Only
+  ``JobConfig.load`` and ``run_job(cfg, out)`` are used, so the same command measures
+  an older checkout (``PYTHONPATH=/path/to/old/checkout``) side by side.
 """
 
 from __future__ import annotations
@@ -33,7 +41,17 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60, help="frames for the per-stage timings")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
     ap.add_argument("--no-e2e", action="store_true", help="skip the Ray end-to-end run")
+    ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
+    ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
+                    help="the two poses.frame_step values of the fixed-cost runs")
     args = ap.parse_args()
+    if args.startup:
+        from vhgen.config import JobConfig
+
+        cfg = JobConfig.load(args.config, backend=args.backend)
+        print_rows(fixed_cost(cfg, args.steps), f"vhgen fixed cost: config {cfg.name}, "
+                   f"backend {cfg.backend}, {cfg.num_workers} workers, {os.cpu_count()} CPUs")
+        return
 
     from vhgen.assets import resolve_asset_dir
     from vhgen.body.labels import LabelScheme
@@ -126,14 +144,48 @@ def main() -> None:
                      summary["seconds"]))
         rows.append((f"end to end, Ray x{cfg.num_workers} (render phase)", summary["frames"],
                      summary["render_seconds"]))
+        rows += fixed_cost(cfg, args.steps)
 
-    print(f"\nvhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
-          f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
+    print_rows(rows, f"vhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
+               f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
+    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth+labels, zstd "
+          f"{cfg.compression_level})")
+
+
+def fixed_cost(cfg, steps) -> list[tuple[str, int, float]]:
+    """Rows: the two timed jobs, the steady time per frame and the fixed cost (intercept)."""
+    from dataclasses import replace
+
+    import vhgen
+    from vhgen.pipeline.driver import run_job
+
+    runs, rows = [], []
+    for step in steps:
+        c = replace(cfg, poses=replace(cfg.poses, frame_step=step))
+        with tempfile.TemporaryDirectory() as tmp:
+            t = time.perf_counter()
+            summary = run_job(c, Path(tmp) / "fixed.zarr")
+            runs.append((summary["frames"], time.perf_counter() - t))
+            if "fixed_seconds" in summary:  # the in-run estimate (this version only)
+                rows.append((f"fixed cost in-run, {summary['frames']} frames", 1,
+                             summary["fixed_seconds"]))
+                for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
+                    rows.append((f"  {k.replace('_seconds', '')}", 1, summary[k]))
+    (n1, t1), (n2, t2) = runs
+    per_frame = (t2 - t1) / (n2 - n1)
+    fixed = t1 - n1 * per_frame
+    where = Path(vhgen.__file__).resolve().parent.parent.name
+    return [*rows, (f"job, {n1} frames ({where})", n1, t1),
+            (f"job, {n2} frames ({where})", n2, t2),
+            (f"steady time per frame ({where})", 1, per_frame),
+            (f"fixed cost = T(0) ({where})", 1, fixed)]
+
+
+def print_rows(rows, title: str) -> None:
+    print(f"\n{title}")
     print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
     for name, count, sec in rows:
         print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
-    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth+labels, zstd "
-          f"{cfg.compression_level})")
 
 
 if __name__ == "__main__":

@@ -225,3 +225,16 @@ def test_console_script(argv, flag, tmp_path):
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert flag in r.stderr and r.stdout == ""
+
+
+def test_quiet_and_verbose_set_the_log_level(recorder, capsys):
+    import logging
+
+    vh = logging.getLogger("vhgen")
+    for argv, level in ((["info", "."], logging.INFO), (["-q", "info", "."], logging.WARNING),
+                        (["info", ".", "--verbose"], logging.DEBUG),
+                        (["info", ".", "--quiet"], logging.WARNING)):
+        assert cli.main(argv) == 0
+        assert vh.level == level, argv
+    assert cli.main(["-q", "info", ".", "-v"]) == 2
+    assert "exclude each other" in capsys.readouterr().err

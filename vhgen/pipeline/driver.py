@@ -107,7 +107,9 @@ class FrameWorker:
                 return self.gen.run_task(store, shard, start, stop)
             finally:
                 frames.write_shard = real
-        return self.gen.run_task(store, shard, start, stop)
+        t = time.perf_counter()
+        result = self.gen.run_task(store, shard, start, stop)
+        return {**result, "seconds": time.perf_counter() - t}
 
 
 @dataclass
@@ -292,15 +294,28 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     skipped = [r for r in poses.report if r["status"] != "ok"]
     intr = cfg.sensor.intrinsics
     t_end = time.perf_counter()
+    per_frame = _steady_seconds_per_frame(results)
     return {"frames": plan.num_frames, "shards": len(plan.tasks), "written": len(results),
             "seconds": t_end - t0, "read_seconds": t_ray, "ray_init_seconds": t_ray,
             "render_seconds": t_render, "renderers": renderers, "skipped": skipped,
-            "first_frame_seconds": (first_frame or t_end) - t0, "tail_seconds": t_end - t_last,
+            "first_shard_seconds": (first_frame or t_end) - t0, "tail_seconds": t_end - t_last,
+            "steady_seconds_per_frame": per_frame,
+            # everything that does not grow with the frames: the job's wall time minus the
+            # frames at the steady rate of its workers
+            "fixed_seconds": t_end - t0 - sum(t.stop - t.start for t in todo) * per_frame
+            / max(1, len(actors)),
             "store": str(out), "poses": poses.num_poses,
             "retries": sum(attempts.values()) - len(todo),
             "valid_fraction": float(np.mean([r["valid_pixels"] for r in results]) /
                                     (intr.width * intr.height * cfg.frames_per_shard))
             if results else 0.0}
+
+
+def _steady_seconds_per_frame(results: list[dict]) -> float:
+    """Median seconds per frame of one worker over the shards it ran (render, sensor and
+    write; a worker's first shard, which builds its first avatar, counts like the rest)."""
+    rates = [r["seconds"] / r["frames"] for r in results if r.get("seconds")]
+    return float(np.median(rates)) if rates else 0.0
 
 
 def _loaded(actor, refs: list, plan: Plan):
