@@ -208,6 +208,23 @@ def _ray_init(num_workers: int, address: str | None) -> bool:
     return True
 
 
+def _shutdown_local_ray(ray) -> None:
+    """ray.shutdown() of the Ray this driver started, without its 1 s stall.
+
+    Ray stops its processes one by one, each given up to 1 s to exit after SIGTERM; the
+    autoscaler monitor of a local head always uses the whole second (measured: 1.01 s of
+    a 1.25 s shutdown). It holds no state of ours, so it is killed first. Ray's private
+    node handle is used defensively: if it changes, this is a plain ray.shutdown().
+    """
+    try:
+        node = ray._private.worker._global_node
+        for info in node.all_processes.get("monitor", []):
+            info.process.kill()
+    except (AttributeError, KeyError, OSError):
+        pass
+    ray.shutdown()
+
+
 def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             resume: bool = False, overwrite: bool = False, max_frames: int | None = None,
             progress: bool = False, faults: dict | None = None) -> dict:
@@ -280,7 +297,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         for a in actors:
             ray.kill(a)
         if started:
-            ray.shutdown()
+            _shutdown_local_ray(ray)
     if "die_once" in faults:
         import shutil
 
