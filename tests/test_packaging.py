@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -29,7 +30,13 @@ def _sh(cmd: list[str], cwd: Path, timeout: float = 600, env=None) -> str:
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("wheel")
-    _sh([sys.executable, "-m", "pip", "wheel", str(REPO), "--no-deps", "-q", "-w", str(out)],
+    # from a clean copy: setuptools reuses an in-tree build/ folder, whose stale files
+    # (a module since deleted) would otherwise end up in the wheel
+    src = out / "src"
+    shutil.copytree(REPO, src, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "build", "*.egg-info", "__pycache__", "out", ".*_cache",
+        ".hypothesis"))
+    _sh([sys.executable, "-m", "pip", "wheel", str(src), "--no-deps", "-q", "-w", str(out)],
         cwd=out)
     (whl,) = out.glob("vhgen-*.whl")
     return whl

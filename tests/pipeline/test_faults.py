@@ -140,3 +140,14 @@ def test_store_from_another_config(tmp_path, capsys):
     assert main(["generate", str(other), "--out", str(tmp_path / "mine"), "--overwrite"]) == 2
     assert "not a vhgen store" in capsys.readouterr().err
     assert (tmp_path / "mine" / "thesis.tex").exists()
+
+
+def test_worker_setup_failure_is_one_line(tmp_path, capsys):
+    """A worker that cannot set up (no GL backend, ...) gives its error, not Ray's trace."""
+    from vhgen.errors import VhgenError
+
+    with pytest.raises(VhgenError) as ei:
+        run_job(_cfg(tmp_path), tmp_path / "s.zarr", max_frames=4,
+                faults={"setup_error": "cannot create an egl OpenGL context: no device"})
+    msg = str(ei.value)
+    assert "\n" not in msg and "cannot create an egl OpenGL context" in msg

@@ -31,7 +31,7 @@ from vhgen.assets import resolve_asset_dir
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import build_body
 from vhgen.config import JobConfig
-from vhgen.errors import StoreError, VhgenError
+from vhgen.errors import RenderError, StoreError, VhgenError
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import Plan, make_plan
 from vhgen.pipeline.poses import PoseSet, load_poses
@@ -52,7 +52,8 @@ class FrameWorker:
     kernels), so it runs while the driver is still planning; :meth:`load` then receives
     the poses and the plan. ``faults`` (tests only): ``{"die_once": (marker folder,
     shards)}`` kills the process the first time one of those shards is attempted;
-    ``{"write_error": (errno, shards)}`` makes writing those shards fail with that OSError.
+    ``{"write_error": (errno, shards)}`` makes writing those shards fail with that OSError;
+    ``{"setup_error": message}`` makes the set-up fail with a RenderError.
     """
 
     def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
@@ -62,16 +63,24 @@ class FrameWorker:
         self.cfg = cfg
         self.asset_dir = asset_dir
         self.faults = faults or {}
-        self.ctx = create_context(cfg.backend)
-        # load (or compile) the sensor's numba kernels now, not in the first frame
-        h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
-        normal = np.zeros((h, w, 3), np.float32)
-        normal[..., 2] = -1.0
-        SensorModel(cfg.sensor).simulate(
-            np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
-            labels=np.ones((h, w), np.uint8), normals=normal,
-            projector_depth=np.full((h, w), 2.0, np.float32))
         self.gen: Any = None
+        # a user-facing failure here (no GL backend, ...) is kept and raised by load():
+        # a constructor's exception reaches the driver only as a multi-line traceback
+        self.setup_error: VhgenError | None = None
+        try:
+            if "setup_error" in self.faults:
+                raise RenderError(self.faults["setup_error"])
+            self.ctx = create_context(cfg.backend)
+            # load (or compile) the sensor's numba kernels now, not in the first frame
+            h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
+            normal = np.zeros((h, w, 3), np.float32)
+            normal[..., 2] = -1.0
+            SensorModel(cfg.sensor).simulate(
+                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
+                labels=np.ones((h, w), np.uint8), normals=normal,
+                projector_depth=np.full((h, w), 2.0, np.float32))
+        except VhgenError as e:
+            self.setup_error = e
 
     def load(self, shared_refs: list, avatars: list[dict]) -> str:
         """Receive poses and plan (nested refs: zero-copy from the object store); returns
@@ -80,6 +89,8 @@ class FrameWorker:
 
         from vhgen.pipeline.frames import FrameGenerator
 
+        if self.setup_error is not None:
+            raise self.setup_error
         rotations, roots, pose_meta, plan_arrays = ray.get(list(shared_refs))
         self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
                                   plan_arrays, avatars, context=self.ctx)
@@ -283,7 +294,13 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         plan_arrays = {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
                        "seeds": plan.seeds}
         refs = [ray.put(x) for x in (poses.rotations, poses.roots, pose_meta, plan_arrays)]
-        renderers = sorted(set(ray.get([a.load.remote(refs, plan.avatars) for a in actors])))
+        try:
+            renderers = sorted(set(ray.get([a.load.remote(refs, plan.avatars)
+                                            for a in actors])))
+        except ray.exceptions.RayTaskError as e:
+            if isinstance(getattr(e, "cause", None), VhgenError):
+                raise VhgenError(f"worker set-up: {e.cause}") from None
+            raise
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
         bar = Progress(sum(t.stop - t.start for t in todo), enabled=progress)
