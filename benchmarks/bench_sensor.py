@@ -63,7 +63,7 @@ def main() -> None:
     from vhgen.render.context import create_context
     from vhgen.sensor.kernels import correlation_window, dots_from_pattern
     from vhgen.sensor.model import PATTERN_PAD, SensorConfig, SensorModel
-    from vhgen.sensor.scenes import human_frame, suite
+    from vhgen.bench.scenes import human_frame, suite
     from vhgen.yamlio import configs_dir
 
     ap = argparse.ArgumentParser()

@@ -12,7 +12,7 @@ from typing import Any
 
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
-from vhgen.sensor.model import SensorConfig
+from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, load_yaml
 
 BUILTIN_MOTION = "builtin:demo"

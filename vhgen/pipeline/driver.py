@@ -120,8 +120,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         create_store(out, num_frames=plan.num_frames, height=intr.height, width=intr.width,
                      frames_per_shard=cfg.frames_per_shard,
                      compression_level=cfg.compression_level, attrs=attrs, overwrite=overwrite,
-                     raw11=bool(cfg.sensor.effect("encode") is not None
-                                and cfg.sensor.effect("encode").params["raw11"]))
+                     raw11=cfg.sensor.encoding.raw11)
     done = completed_shards(out)
     todo = [t for t in plan.tasks if t.shard not in done]
     log.info("%d frames in %d shards (%d to do), %d poses from %d motion files", plan.num_frames,

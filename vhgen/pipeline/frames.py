@@ -62,8 +62,6 @@ class FrameGenerator:
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
                                            normals="normals" in cfg.sensor.needs)
-        enc = cfg.sensor.effect("encode")
-        self.raw11 = bool(enc is not None and enc.params["raw11"])
         self._avatar: tuple[int, Body] | None = None
         # poses were retargeted onto the unshaped base body; an avatar's root height
         # scales with its hip height so its feet stay on the floor
@@ -139,11 +137,13 @@ class FrameGenerator:
         h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
         depth = np.zeros((stop - start, h, w), np.uint16)
         labels = np.zeros((stop - start, h, w), np.uint8)
-        raw = np.zeros((stop - start, h, w), np.uint16) if self.raw11 else None
+        raw = None  # allocated if the sensor's encoding keeps raw11 (the model decides)
         rows = []
         for i, f in enumerate(range(start, stop)):
             depth[i], labels[i], row, r11 = self.render_frame(f)
-            if raw is not None:
+            if r11 is not None:
+                if raw is None:
+                    raw = np.zeros((stop - start, h, w), np.uint16)
                 raw[i] = r11
             row["shard"] = shard
             rows.append(row)

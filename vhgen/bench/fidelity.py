@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from vhgen.sensor.model import SensorConfig, SensorModel
-from vhgen.sensor.scenes import Frame
+from vhgen.bench.scenes import Frame
 
 DEFAULT_CONFIGS = ("ideal", "kinect_v1_fast", "kinect_v1_full", "kinect_v1_exact_shadows")
 REFERENCE = "kinect_v1_reference"
@@ -191,7 +191,7 @@ def bench_fidelity(out_dir: str | Path, *, quick: bool = False, configs=DEFAULT_
                    human: bool = True, backend: str = "egl", motion: str | None = None,
                    asset_dir=None) -> dict:
     """Build the scene suite, evaluate, and write table.txt, fidelity.json, fidelity.png."""
-    from vhgen.sensor.scenes import human_frame, suite
+    from vhgen.bench.scenes import human_frame, suite
 
     ref_cfg = SensorConfig.load(REFERENCE)
     intr, b = ref_cfg.intrinsics, ref_cfg.baseline_m
