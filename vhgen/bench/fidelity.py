@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vhgen.sensor.model import SensorConfig, SensorModel
 from vhgen.bench.scenes import Frame
+from vhgen.sensor.model import SensorConfig, SensorModel
 
 DEFAULT_CONFIGS = ("ideal", "kinect_v1_fast", "kinect_v1_full", "kinect_v1_exact_shadows")
 REFERENCE = "kinect_v1_reference"
@@ -198,7 +198,7 @@ def bench_fidelity(out_dir: str | Path, *, quick: bool = False, configs=DEFAULT_
     frames = suite(intr, b, quick=quick)
     if human:
         from vhgen.assets import resolve_asset_dir
-        from vhgen.pipeline.poses import builtin_motion_path
+        from vhgen.mocap.clips import builtin_motion_path
         from vhgen.render.context import create_context
 
         ctx = create_context(backend)
