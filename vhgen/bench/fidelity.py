@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -70,7 +71,8 @@ def evaluate(frames: list[Frame], configs=DEFAULT_CONFIGS, reference: str = REFE
     for m in models.values():  # compile numba kernels outside the timings
         m.simulate(frames[0].depth, np.random.default_rng(0), labels=frames[0].labels,
                    normals=frames[0].normals, projector_depth=frames[0].projector_depth)
-    results = {"reference": reference, "configs": {}, "scenes": [fr.name for fr in frames]}
+    results: dict[str, Any] = {"reference": reference, "configs": {},
+                               "scenes": [fr.name for fr in frames]}
     ref_out = {}
     ref_ms = []
     for k, fr in enumerate(frames):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vhgen.camera import Intrinsics, pixel_rays
+from vhgen.errors import RenderError
 
 
 @dataclass(frozen=True)
@@ -111,12 +112,14 @@ def human_frame(ctx, intr: Intrinsics, baseline: float, asset_dir, motion_path,
     rot, root = rt.apply(motion, frames=np.array([frame]))
     root = root[0] - np.array([root[0, 0], 0.0, root[0, 2]])
     mats = bone_matrices(body.rig, rot[0], root)
-    w2c = look_at([0, 1.0, distance], [0, 0.9, 0])
+    w2c = look_at(np.array([0, 1.0, distance]), np.array([0, 0.9, 0]))
     ren = DepthLabelRenderer(ctx, intr, normals=True)
     ren.set_mesh(body.vertices, body.faces, body.joints, body.weights, body.face_labels,
                  body.num_bones)
     d, lab = ren.render(w2c @ mats)
     nrm = ren.normals
+    if nrm is None:
+        raise RenderError("the renderer returned no normals")
     w2p = w2c.copy()
     w2p[0, 3] -= baseline
     pd, _ = ren.render(w2p @ mats)

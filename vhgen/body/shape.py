@@ -175,7 +175,7 @@ class MacroTargets:
             arrays[name + ".d"] = a[:, 1:].astype(np.float32)
         self.cache.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.cache.with_name(f"{self.cache.stem}.{os.getpid()}.tmp.npz")
-        np.savez(tmp, **arrays)
+        np.savez(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub: kwargs vs allow_pickle
         os.replace(tmp, self.cache)
         log.info("cached %d macro targets in %s", len(files), self.cache)
 

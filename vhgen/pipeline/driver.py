@@ -13,6 +13,7 @@ import logging
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -150,7 +151,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         renderers = sorted(set(ray.get([a.renderer.remote() for a in actors])))
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
-        pending = {}
+        pending: dict[Any, tuple[Any, Any]] = {}
         queue = list(todo)
         attempts = {t.shard: 0 for t in todo}
         results = []

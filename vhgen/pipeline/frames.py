@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -79,8 +80,10 @@ class FrameGenerator:
             self._avatar = (avatar_id, body)
         return self._avatar[1]
 
-    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict]:
-        """depth (H, W) uint16 mm, labels (H, W) uint8, and the frame's manifest row."""
+    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any],
+                                                np.ndarray | None]:
+        """depth (H, W) uint16 mm, labels (H, W) uint8, the frame's manifest row, and the
+        raw 11-bit image (H, W) uint16 when the sensor's encoding keeps it (else None)."""
         avatar_id = int(self.plan["avatar_id"][frame])
         pose = int(self.plan["pose_index"][frame])
         seed = int(self.plan["seeds"][frame])
@@ -105,7 +108,9 @@ class FrameGenerator:
             proj, _ = self.renderer.render(w2p @ mats)
         out = self.sensor.simulate(depth_f, rng, labels=labels, normals=normals,
                                    projector_depth=proj)
-        depth_mm, labels, valid = out.depth_mm, out.labels, out.valid
+        depth_mm, valid = out.depth_mm, out.valid
+        if out.labels is not None:  # moved with the pixels by geometric effects
+            labels = out.labels
         heads = posed_heads(body.rig, rot, root)
         joints_cam = (heads @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
         mid = int(self.pose_meta["motion_id"][pose])

@@ -7,6 +7,7 @@ One draw call per pose fills one RG32F target (planar depth, part label).
 from __future__ import annotations
 
 from importlib import resources
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +18,7 @@ LABEL_TEX_WIDTH = 4096
 
 
 SKINNING_MODES = ("lbs", "dqs")
-_PARKING: dict[int, object] = {}
+_PARKING: dict[int, Any] = {}
 
 
 def _park(ctx) -> None:
@@ -81,6 +82,7 @@ class DepthLabelRenderer:
         _defines(1, skinning)
         self.skinning = skinning
         self.want_normals = bool(normals)
+        self.normals: np.ndarray | None = None  # (H, W, 3) float32 after render()
         self.ctx = ctx
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
@@ -94,7 +96,7 @@ class DepthLabelRenderer:
         self.depth = ctx.depth_renderbuffer(size)
         self.fbo = ctx.framebuffer(color_attachments=attachments, depth_attachment=self.depth)
         self._out = np.empty((intr.height, intr.width, 2), dtype=np.float32)
-        self.program = None
+        self.program: Any = None
         self.num_bones = 0
         self._mesh: list = []
         self.vao = None
