@@ -19,7 +19,7 @@ from vhgen.sensor.config import SensorConfig
 from vhgen.sensor.kernels import encode_raw11, finish, sanitise
 from vhgen.sensor.pattern import PATTERN_PAD, dot_pattern
 from vhgen.sensor.stage import Stage, compile_stage
-from vhgen.sensor.state import HOLE_CAUSES, SensorState
+from vhgen.sensor.state import SensorState
 
 __all__ = ["PATTERN_PAD", "SensorConfig", "SensorModel", "SensorOutput", "dot_pattern"]
 
@@ -83,5 +83,5 @@ class SensorModel:
         depth_mm, ok, d = finish(s.active(), s.valid, s.fb, in_d)
         enc = cfg.encoding
         raw = encode_raw11(d, ok, enc.d_off) if enc.raw11 else None
-        holes = {c: int(np.count_nonzero(m)) for c, m in s.holes.items() if c in HOLE_CAUSES}
+        holes = {c: int(np.count_nonzero(m)) for c, m in s.holes.items()}
         return SensorOutput(depth_mm, ok, s.labels, raw, d, holes)

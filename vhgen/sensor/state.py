@@ -16,6 +16,7 @@ from scipy.special import ndtri
 from vhgen.camera import Intrinsics
 from vhgen.sensor.kernels import incidence_cos, invert_inplace, remove_pixels
 
+# hole causes of the shipped effects (an added effect may record its own)
 HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",
                "matching")
 
