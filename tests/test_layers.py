@@ -40,6 +40,11 @@ def _layer(mod: str) -> int:
     raise AssertionError(f"vhgen.{mod} is in no layer: add it to LAYERS in {__file__}")
 
 
+def _is_module(dotted: str) -> bool:
+    p = ROOT.parent.joinpath(*dotted.split("."))
+    return p.with_suffix(".py").is_file() or (p / "__init__.py").is_file()
+
+
 def _module(path: Path) -> str:
     parts = list(path.relative_to(ROOT).with_suffix("").parts)
     if parts[-1] == "__init__" and len(parts) > 1:
@@ -62,9 +67,9 @@ def _imports(path: Path, mod: str) -> list[tuple[int, str]]:
             else:
                 name = node.module or ""
             out.append((node.lineno, name))
-            # `from vhgen import sensor` imports the submodule
+            # `from vhgen.sensor import effects` imports the submodule
             out += [(node.lineno, f"{name}.{a.name}") for a in node.names
-                    if name == "vhgen" and (ROOT / a.name).exists()]
+                    if name.startswith("vhgen") and _is_module(f"{name}.{a.name}")]
     return out
 
 
@@ -110,3 +115,32 @@ def test_import_vhgen_is_light():
             "print(','.join(bad)); sys.exit(1 if bad else 0)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_no_import_cycles():
+    """No module reaches itself through imports (inside functions included), so no
+    import is ever placed in a function to dodge a cycle."""
+    graph: dict[str, set[str]] = {}
+    mods = {_module(p) for p in ROOT.rglob("*.py")}
+    for _, _, mod, name in _edges():
+        target = name[len("vhgen."):] if name.startswith("vhgen.") else None
+        while target and target not in mods:  # `from vhgen.x import name`
+            target = target.rpartition(".")[0]
+        if target and target != mod:
+            graph.setdefault(mod, set()).add(target)
+
+    def reach(start: str) -> set[str]:
+        seen, todo = set(), [start]
+        while todo:
+            for n in graph.get(todo.pop(), ()):
+                if n not in seen:
+                    seen.add(n)
+                    todo.append(n)
+        return seen
+
+    def nested(a: str, b: str) -> bool:  # a package and its own submodule
+        return a.startswith(b + ".") or b.startswith(a + ".") or "__init__" in (a, b)
+
+    cycles = sorted(m for m in graph
+                    if any(m in reach(n) and not nested(m, n) for n in reach(m)))
+    assert not cycles, f"modules on an import cycle: {cycles}"

@@ -18,7 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from vhgen.bench.scenes import Frame
+from vhgen.assets import resolve_asset_dir
+from vhgen.bench.scenes import Frame, human_frame, suite
+from vhgen.mocap.clips import builtin_motion_path
 from vhgen.sensor.model import SensorConfig, SensorModel
 
 DEFAULT_CONFIGS = ("ideal", "kinect_v1_fast", "kinect_v1_full", "kinect_v1_exact_shadows")
@@ -193,15 +195,11 @@ def bench_fidelity(out_dir: str | Path, *, quick: bool = False, configs=DEFAULT_
                    human: bool = True, backend: str = "egl", motion: str | None = None,
                    asset_dir=None) -> dict:
     """Build the scene suite, evaluate, and write table.txt, fidelity.json, fidelity.png."""
-    from vhgen.bench.scenes import human_frame, suite
-
     ref_cfg = SensorConfig.load(REFERENCE)
     intr, b = ref_cfg.intrinsics, ref_cfg.baseline_m
     frames = suite(intr, b, quick=quick)
     if human:
-        from vhgen.assets import resolve_asset_dir
-        from vhgen.mocap.clips import builtin_motion_path
-        from vhgen.render.context import create_context
+        from vhgen.render.context import create_context  # GL only for the human scene
 
         ctx = create_context(backend)
         frames.append(human_frame(ctx, intr, b, resolve_asset_dir(asset_dir),

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vhgen.assets import vhgen_home
 from vhgen.errors import AssetError, ConfigError
 
 log = logging.getLogger(__name__)
@@ -149,8 +150,6 @@ class MacroTargets:
     """
 
     def __init__(self, asset_dir: Path, cache_dir: Path | None = None):
-        from vhgen.assets import vhgen_home
-
         self.root = Path(asset_dir) / "targets" / "macrodetails"
         files = sorted(self.root.rglob("*.target.gz"))
         if not files:

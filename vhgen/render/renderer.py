@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
 
@@ -51,8 +52,6 @@ def write_bones(program, matrices: np.ndarray, mode: str) -> None:
     if mode == "lbs":
         program["bones"].write(np.ascontiguousarray(np.swapaxes(m, -1, -2), dtype="f4").tobytes())
     else:
-        from vhgen.body.skinning import dual_quaternions
-
         real, dual = dual_quaternions(m)
         program["dq_real"].write(np.ascontiguousarray(real, dtype="f4").tobytes())
         program["dq_dual"].write(np.ascontiguousarray(dual, dtype="f4").tobytes())

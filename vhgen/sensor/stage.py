@@ -7,15 +7,13 @@ themselves for their spec class (``class FooStage(Stage, spec=Foo)``).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
 
+from vhgen.sensor.config import SensorConfig
 from vhgen.sensor.spec import EffectSpec
 from vhgen.sensor.state import SensorState
-
-if TYPE_CHECKING:
-    from vhgen.sensor.config import SensorConfig
 
 S = TypeVar("S", bound=EffectSpec)
 _STAGES: dict[type[EffectSpec], type[Stage[Any]]] = {}
