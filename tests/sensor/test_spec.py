@@ -24,6 +24,8 @@ def test_fields_are_typed_and_integers_stay_integers():
     assert isinstance(cw.window, int) and cw.to_dict() == {"correlation_window": {
         "window": 7, "frac": 1 / 1.5, "inlier_px": 0.1, "splat_radius_px": 3.1}}
     assert isinstance(ProjectorShadow(tolerance=0).tolerance, float)
+    nine = CorrelationWindow.from_dict({"window": 9.0})  # as older sensor files wrote it
+    assert nine.window == 9 and isinstance(nine.window, int)
     with pytest.raises(AttributeError):
         cw.window = 9  # type: ignore[misc]  # frozen
 

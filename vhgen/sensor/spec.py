@@ -49,7 +49,8 @@ class SpecError(ValueError):
 
 @dataclass(frozen=True)
 class Number:
-    """A numeric parameter: float (ints accepted) or, with ``integer``, int only."""
+    """A numeric parameter: float (ints accepted) or, with ``integer``, an int (a float
+    with no fraction, such as 9.0, is taken as that int)."""
 
     lo: float | None = None
     hi: float | None = None
@@ -61,10 +62,11 @@ class Number:
         kind = "an integer" if self.integer else "a number"
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise SpecError(name, f"must be {kind}, got {v!r}")
-        if self.integer and not isinstance(v, int):
-            raise SpecError(name, f"must be {kind}, got {v!r}")
         if not math.isfinite(v):
             raise SpecError(name, f"must be finite, got {v!r}")
+        # 9.0 (older sensor files wrote integers as floats) is 9; 9.5 is an error
+        if self.integer and not float(v).is_integer():
+            raise SpecError(name, f"must be {kind}, got {v!r}")
         if (self.lo is not None and v < self.lo) or (self.hi is not None and v > self.hi):
             raise SpecError(name, f"{v!r} is outside [{self.lo}, {self.hi}]"
                                   + (f" {self.unit}" if self.unit else ""))
