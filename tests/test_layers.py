@@ -30,7 +30,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("dataset", "cli", "__init__", "__main__"),
 ]
 # Backends: which modules may import them at all (prefix match on the dotted name).
-BACKENDS = {"ray": ("pipeline.driver",), "moderngl": ("render",), "glcontext": ("render",)}
+BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",), "glcontext": ("render",)}
 
 
 def _layer(mod: str) -> int:
@@ -144,3 +144,16 @@ def test_no_import_cycles():
     cycles = sorted(m for m in graph
                     if any(m in reach(n) and not nested(m, n) for n in reach(m) - {m}))
     assert not cycles, f"modules on an import cycle: {cycles}"
+
+
+if __name__ == "__main__":
+    # `python tests/test_layers.py > graph.dot`: the package graph (dot -Tsvg), layer ranks
+    edges = {(mod.split(".")[0], name.split(".")[1]) for _, _, mod, name in _edges()
+             if name.startswith("vhgen.") and mod.split(".")[0] != name.split(".")[1]}
+    print("digraph vhgen {\n  rankdir=BT;")
+    for i, names in enumerate(LAYERS):
+        nodes = "; ".join('"' + n + '"' for n in names)
+        print(f"  {{rank=same; {nodes}}}  // layer {i}")
+    for a, b in sorted(edges):
+        print(f'  "{a}" -> "{b}";')
+    print("}")
