@@ -30,7 +30,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("dataset", "cli", "__init__", "__main__"),
 ]
 # Backends: which modules may import them at all (prefix match on the dotted name).
-BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",), "glcontext": ("render",)}
+BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",),
+            "glcontext": ("render",)}
 
 
 def _layer(mod: str) -> int:
