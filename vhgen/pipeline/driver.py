@@ -110,7 +110,7 @@ class FrameWorker:
 
             real = frames.write_shard
 
-            def failing(path, shard_, *a, **kw):  # half the shard lands, then the disk fails
+            def failing(path: str | Path, *args: Any, **kw: Any) -> None:
                 raise OSError(bad[0], os.strerror(bad[0]), str(Path(path) / "depth"))
 
             frames.write_shard = failing
@@ -370,11 +370,10 @@ def _open_store(cfg: JobConfig, out: Path, p: _Prepared, resume: bool) -> None:
             if n_clean:
                 log.warning("removed %d partial files left by a killed writer", n_clean)
         else:
-            enc = cfg.sensor.effect("encode")
             create_store(out, num_frames=plan.num_frames, height=intr.height, width=intr.width,
                          frames_per_shard=cfg.frames_per_shard,
                          compression_level=cfg.compression_level, attrs=attrs,
-                         overwrite=True, raw11=bool(enc is not None and enc.params["raw11"]))
+                         overwrite=True, raw11=cfg.sensor.encoding.raw11)
     except OSError as e:
         raise StoreError(_os_error_line(e, out, "cannot create the store")) from None
 
