@@ -27,7 +27,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("pipeline",),
     ("bench",),
     ("forest",),
-    ("dataset", "cli", "__init__", "__main__"),
+    ("dataset", "cli", "cliargs", "__init__", "__main__"),
 ]
 # Backends: which modules may import them at all (prefix match on the dotted name).
 BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",),
