@@ -245,8 +245,10 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     progress : show frames done, frames/s and ETA (a bar on a terminal, log lines
         otherwise).
     faults : fault injection for tests (see :class:`FrameWorker`).
-    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files, and
-    the start-up timings ``first_frame_seconds`` / ``tail_seconds``).
+    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files) with
+    the timings: ``ray_init_seconds``, ``first_shard_seconds`` (start to the first shard
+    written), ``tail_seconds`` (last shard to return), ``steady_seconds_per_frame`` (one
+    worker) and ``fixed_seconds`` (wall time minus the frames at the steady rate).
     """
     t0 = time.perf_counter()
     out = Path(out)
