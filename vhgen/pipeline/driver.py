@@ -70,6 +70,11 @@ class FrameWorker:
         try:
             if "setup_error" in self.faults:
                 raise RenderError(self.faults["setup_error"])
+            # llvmpipe (Mesa's software GL) would start one thread per core in every actor;
+            # the actors are the parallelism. Read when the first context is created, so
+            # set here, in the actor's own process: no runtime_env needed (which would cost
+            # a runtime-env round trip and a fresh worker process per actor)
+            os.environ.setdefault("LP_NUM_THREADS", "1")
             self.ctx = create_context(cfg.backend)
             # load (or compile) the sensor's numba kernels now, not in the first frame
             h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
@@ -193,15 +198,18 @@ def _os_error_line(e: OSError, out: Path, what: str) -> str:
 
 
 def _ray_env(local: bool) -> None:
-    """Environment for Ray, set before it starts (workers of a local Ray inherit it)."""
+    """Environment for Ray, set before it starts (the workers of a local Ray inherit it),
+    and Ray's notices that do not concern a vhgen user hidden (shown with --verbose)."""
     if local:
-        # a new local Ray enables token authentication and warns about it unless the mode
-        # is set; we keep token auth on and say so, which silences that warning
+        # a new local Ray turns token authentication on and warns about it unless the
+        # mode is set: keep it on, explicitly, which is what silences the warning
         os.environ.setdefault("RAY_AUTH_MODE", "token")
-        # llvmpipe would start one thread per core in every actor; actors are the
-        # parallelism (passing this via runtime_env costs a runtime-env round trip)
-        os.environ.setdefault("LP_NUM_THREADS", "1")
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if not logging.getLogger("vhgen").isEnabledFor(logging.DEBUG):
+        # joining a cluster with a token in ~/.ray warns the same way (Ray's own module
+        # logger: only its warnings about the authentication mode are hidden)
+        logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(
+            logging.ERROR)
 
 
 def _ray_init(num_workers: int, address: str | None) -> bool:
@@ -272,10 +280,8 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             (out.parent / f".{out.name}.faults").mkdir(parents=True, exist_ok=True)
             faults["die_once"] = (str(out.parent / f".{out.name}.faults"),
                                   set(faults["die_once"]))
-        env = {} if not address else {"runtime_env": {"env_vars": {"LP_NUM_THREADS": "1"}}}
-
         def new_actor(asset_dir: Path):
-            return actor_cls.options(**env).remote(cfg, str(asset_dir), faults)
+            return actor_cls.remote(cfg, str(asset_dir), faults)
 
         # actors set up (GL, kernels) while the driver's thread finishes reading poses
         asset_dir = resolve_asset_dir(cfg.assets)
