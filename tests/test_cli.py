@@ -194,9 +194,13 @@ def test_bad_scene_file_names_the_field(tmp_path, capsys):
     code, err = _run(["generate", str(bad), "--out", str(tmp_path / "o.zarr")], capsys)
     assert code == 2 and "poses.frame_step" in err and str(bad) in err
     assert len(err.strip().splitlines()) == 1
-    bad.write_text("name: s\nmotions: [builtin:demo]\nnum_workers: two\n")
-    code, err = _run(["generate", str(bad), "--out", str(tmp_path / "o.zarr")], capsys)
-    assert code == 2 and "num_workers" in err
+    for line, field in (("num_workers: two", "num_workers"), ("sensor: 5", "sensor"),
+                        ("labels: nosuch", "labels"), ("retarget: [a]", "retarget"),
+                        ("labels: mine.yaml", "mine.yaml")):
+        bad.write_text(f"name: s\nmotions: [builtin:demo]\n{line}\n")
+        code, err = _run(["generate", str(bad), "--out", str(tmp_path / "o.zarr")], capsys)
+        assert code == 2 and field in err and str(bad) in err, (line, err)
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
 def test_internal_errors_keep_their_traceback(monkeypatch):

@@ -182,11 +182,25 @@ class JobConfig:
             d, "num_workers", path, "", lo=1, hi=4096, integer=True, default=2)
         if overrides:
             raise ConfigError(path, "overrides", f"unknown overrides {sorted(overrides)}")
-        sensor_ref = d.get("sensor", "kinect_v1_full")
-        sensor_path = sensor_ref if not str(sensor_ref).endswith((".yaml", ".yml")) else \
-            str((path.parent / sensor_ref).resolve())
+        # named configs come from the package, YAML paths are relative to this file;
+        # checked here, so a typo fails before any work starts
+        refs: dict[str, str] = {}
+        for key, kind, default in (("sensor", "sensors", "kinect_v1_full"),
+                                   ("labels", "labels", "shotton31"),
+                                   ("retarget", "retarget", "auto")):
+            ref = d.get(key, default)
+            if not isinstance(ref, str) or not ref:
+                raise ConfigError(path, key, f"must be a config name or a YAML path, got {ref!r}")
+            if ref.endswith((".yaml", ".yml")):
+                ref = str((path.parent / Path(ref).expanduser()).resolve())
+            refs[key] = ref
+            if key != "sensor" and ref != "auto":  # the sensor is loaded (and checked) below
+                try:
+                    find_config(kind, ref)
+                except ConfigError as e:
+                    raise ConfigError(path, key, str(e)) from None
         try:
-            sensor = SensorConfig.load(sensor_path)
+            sensor = SensorConfig.load(refs["sensor"])
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
         assets = d.get("assets")
@@ -195,8 +209,8 @@ class JobConfig:
         return cls(
             name=str(d["name"]),
             seed=_num(d, "seed", path, "", lo=0, hi=2**63 - 1, integer=True, default=0),
-            motions=tuple(resolved), retarget=str(d.get("retarget", "auto")),
-            labels=str(d.get("labels", "shotton31")), sensor=sensor, assets=assets,
+            motions=tuple(resolved), retarget=refs["retarget"],
+            labels=refs["labels"], sensor=sensor, assets=assets,
             poses=poses, avatars=avatars, camera=camera,
             frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,
                                   integer=True, default=16),

@@ -261,6 +261,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     t0 = time.perf_counter()
     out = Path(out)
     check_output(out, resume=resume, overwrite=overwrite)
+    asset_dir = resolve_asset_dir(cfg.assets)  # missing assets: fail before Ray starts
     if resume and (out / "zarr.json").is_file():
         _check_same_config(out, _config_attrs(cfg, LabelScheme.load(cfg.labels)))
     address = ray_address or os.environ.get("RAY_ADDRESS")
@@ -284,7 +285,6 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             return actor_cls.remote(cfg, str(asset_dir), faults)
 
         # actors set up (GL, kernels) while the driver's thread finishes reading poses
-        asset_dir = resolve_asset_dir(cfg.assets)
         actors = [new_actor(asset_dir) for _ in range(cfg.num_workers)]
         p = prepared.result()
         plan, poses = p.plan, p.poses
