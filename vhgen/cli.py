@@ -336,6 +336,10 @@ def main(argv: list[str] | None = None) -> int:
     except VhgenError as e:
         print(f"vhgen: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("vhgen: interrupted (finished shards are kept: rerun with --resume)",
+              file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":
