@@ -149,6 +149,8 @@ class FrameDataset:
             table = pq.read_table(man_path, columns=cols).sort_by("frame")
         except (KeyError, ValueError) as e:
             raise StoreError(f"{man_path}: {e}") from None
+        if not (path / "depth" / "zarr.json").is_file():
+            raise StoreError(f"{path}: no 'depth' array; not a vhgen store")
         self.num_frames = int(root["depth"].shape[0])
         available = _array_names(path, self.num_frames)
         if arrays is None:
