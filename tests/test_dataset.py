@@ -193,5 +193,6 @@ def test_to_ray(small_store, truth):
         assert frames == [i for i in range(8) if man["avatar_id"][i].as_py() == 1]
         batch = next(iter(sub.iter_batches(batch_size=2, batch_format="numpy")))
         assert batch["labels"].shape == (2, 480, 640) and "depth" not in batch
+        assert vd.to_ray(small_store, avatar_id=99).count() == 0  # nothing matches
     finally:
         ray.shutdown()

@@ -333,7 +333,7 @@ def to_ray(store: str | Path, *, arrays: Sequence[str] | None = None,
     table = ds.manifest
     # one block per shard's worth of rows keeps reads shard-local and spreads them over
     # the cluster
-    blocks = [table.slice(i, fps) for i in range(0, table.num_rows, fps)]
+    blocks = [table.slice(i, fps) for i in range(0, table.num_rows, fps)] or [table]
     return ray.data.from_arrow(blocks).map_batches(
         _ShardArrays(ds.store, ds.arrays, fps), batch_size=None, batch_format="pyarrow")
 
