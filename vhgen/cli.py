@@ -297,9 +297,27 @@ def _add_info(sub: _Sub) -> None:
     i.add_argument("store", type=A.existing_path(), help="a vhgen Zarr store")
 
 
+# -- inspect -----------------------------------------------------------------------------
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from vhgen.store.inspect import inspect_store, report_json
+
+    rep = inspect_store(args.store)
+    print(report_json(rep) if args.json else rep.format())
+    return 0 if rep.ok else 1
+
+
+def _add_inspect(sub: _Sub) -> None:
+    ins = _leaf(sub, "inspect", "verify a dataset: frames, arrays vs manifest, shards "
+                                "readable; part histogram (exit 1 on any defect)", _cmd_inspect)
+    ins.add_argument("store", type=A.existing_path(), help="a vhgen Zarr store")
+    ins.add_argument("--json", action="store_true", help="print the report as JSON")
+
+
 # Each entry adds one subcommand (its parser, arguments and function).
 SUBCOMMANDS: list[Callable[[_Sub], None]] = [
     _add_assets, _add_generate, _add_corpus, _add_avatar, _add_bench, _add_preview, _add_info,
+    _add_inspect,
 ]
 
 

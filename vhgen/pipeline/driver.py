@@ -36,6 +36,7 @@ from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import Plan, make_plan
 from vhgen.pipeline.poses import PoseSet, load_poses
 from vhgen.pipeline.progress import Progress
+from vhgen.pipeline.resources import actor_options
 from vhgen.store.manifest import merge_parts
 from vhgen.store.zarr_store import clean_partials, completed_shards, create_store, read_attrs
 
@@ -57,6 +58,7 @@ class FrameWorker:
     """
 
     def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
+        from vhgen.pipeline.resources import worker_context
         from vhgen.render.context import create_context
         from vhgen.sensor.model import SensorModel
 
@@ -75,7 +77,9 @@ class FrameWorker:
             # set here, in the actor's own process: no runtime_env needed (which would cost
             # a runtime-env round trip and a fresh worker process per actor)
             os.environ.setdefault("LP_NUM_THREADS", "1")
-            self.ctx = create_context(cfg.backend)
+            # a GPU worker opens the EGL device Ray gave it; otherwise the config's backend
+            self.ctx = worker_context(cfg, os.environ.get("CUDA_VISIBLE_DEVICES")) \
+                or create_context(cfg.backend)
             # load (or compile) the sensor's numba kernels now, not in the first frame
             h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
             normal = np.zeros((h, w, 3), np.float32)
@@ -275,7 +279,10 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
     try:
         started = _ray_init(cfg.num_workers, address)
         t_ray = time.perf_counter() - t0
-        actor_cls = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(FrameWorker)
+        # Actors are not restarted by Ray: the driver replaces a dead actor itself and
+        # resubmits its shard, so a restart never depends on constructor arguments.
+        opts = actor_options(cfg, ray.cluster_resources() if started else None)
+        actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
         faults = dict(faults or {})
         if "die_once" in faults:
             (out.parent / f".{out.name}.faults").mkdir(parents=True, exist_ok=True)
