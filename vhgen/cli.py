@@ -216,6 +216,10 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summary of a dataset")
     i.add_argument("store")
     i.set_defaults(func=_cmd_info)
+
+    from vhgen.forest.cli import add_parser as add_forest_parser
+
+    add_forest_parser(sub)
     return p
 
 
