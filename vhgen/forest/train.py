@@ -248,8 +248,10 @@ class ImageShard:
             ys.append((flat // w).astype(np.int32))
             xs.append((flat % w).astype(np.int32))
             labs.append(lab)
-        cat = (lambda parts, dt: np.concatenate(parts).astype(dt) if parts else
-               np.zeros(0, dt))
+
+        def cat(parts: list[np.ndarray], dt: type) -> np.ndarray:
+            return np.concatenate(parts).astype(dt) if parts else np.zeros(0, dt)
+
         self.s_img, self.s_x, self.s_y = cat(imgs, np.int32), cat(xs, np.int32), cat(ys, np.int32)
         self.s_lab = cat(labs, np.uint8)
         if len(self.s_lab) and int(self.s_lab.max()) >= num_classes:
