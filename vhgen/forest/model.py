@@ -55,8 +55,8 @@ class Forest:
 
     def probabilities(self) -> np.ndarray:
         """(N, C) float32 normalised class histograms (all-zero rows stay zero)."""
-        tot = self.counts.sum(axis=1, keepdims=True)
-        return (self.counts / np.maximum(tot, 1)).astype(np.float32)
+        tot = np.maximum(self.counts.sum(axis=1, keepdims=True), 1).astype(np.float32)
+        return self.counts.astype(np.float32) / tot
 
     def leaf_labels(self) -> np.ndarray:
         """(N,) uint8 argmax class of every node (first maximum), what one tree outputs."""
@@ -107,34 +107,77 @@ def _walk(img, x, y, scale, offsets, thresh, left, node):
     return node
 
 
+_BLOCK = 32  # pixels walked in lockstep: their dependency chains overlap in the CPU
+
+
 @numba.njit(cache=True)
-def _predict_frame(img, offsets, thresh, left, roots, prob, out):
+def _predict_frame(img, nodes, roots, prob, out):
+    """nodes: (N, 6) int32 rows (du1, dv1, du2, dv2, thresh, left) - one cache line per
+    visit. Pixels are walked in blocks of _BLOCK in lockstep: one pixel's walk is a chain of
+    dependent loads (latency bound), independent pixels fill the pipeline."""
     h, w = img.shape
     c = prob.shape[1]
-    acc = np.zeros(c, dtype=np.float32)
+    npix = 0
     for y in range(h):
         for x in range(w):
-            d0 = img[y, x]
-            if d0 == BACKGROUND_MM:
+            if img[y, x] == BACKGROUND_MM:
                 out[y, x] = 0
-                continue
-            scale = FOCAL_SCALE / np.float64(d0)
-            acc[:] = 0.0
-            for t in range(roots.shape[0]):
-                leaf = _walk(img, x, y, scale, offsets, thresh, left, roots[t])
-                for k in range(c):
-                    acc[k] += prob[leaf, k]
+            else:
+                npix += 1
+    ys = np.empty(npix, np.int64)
+    xs = np.empty(npix, np.int64)
+    k = 0
+    for y in range(h):
+        for x in range(w):
+            if img[y, x] != BACKGROUND_MM:
+                ys[k] = y
+                xs[k] = x
+                k += 1
+    node = np.empty(_BLOCK, np.int64)
+    scale = np.empty(_BLOCK, np.float64)
+    acc = np.zeros((_BLOCK, c), np.float32)
+    for b0 in range(0, npix, _BLOCK):
+        nb = min(_BLOCK, npix - b0)
+        acc[:] = 0.0
+        for p in range(nb):
+            scale[p] = FOCAL_SCALE / np.float64(img[ys[b0 + p], xs[b0 + p]])
+        for t in range(roots.shape[0]):
+            for p in range(nb):
+                node[p] = roots[t]
+            active = nb
+            while active > 0:
+                active = 0
+                for p in range(nb):
+                    n = node[p]
+                    lft = nodes[n, 5]
+                    if lft < 0:
+                        continue
+                    active += 1
+                    x = xs[b0 + p]
+                    y = ys[b0 + p]
+                    s = scale[p]
+                    # same arithmetic as features._probe64 (PCL trees.cpp runThroughTree)
+                    u1 = min(max(int(np.float32(x + nodes[n, 0] * s)), 0), w - 1)
+                    v1 = min(max(int(np.float32(y + nodes[n, 1] * s)), 0), h - 1)
+                    u2 = min(max(int(np.float32(x + nodes[n, 2] * s)), 0), w - 1)
+                    v2 = min(max(int(np.float32(y + nodes[n, 3] * s)), 0), h - 1)
+                    f = np.int32(img[v1, u1]) - np.int32(img[v2, u2])
+                    node[p] = lft + 1 if f > nodes[n, 4] else lft
+            for p in range(nb):
+                for q in range(c):
+                    acc[p, q] += prob[node[p], q]
+        for p in range(nb):
             best = 0
-            for k in range(1, c):
-                if acc[k] > acc[best]:
-                    best = k
-            out[y, x] = best
+            for q in range(1, c):
+                if acc[p, q] > acc[p, best]:
+                    best = q
+            out[ys[b0 + p], xs[b0 + p]] = best
 
 
 @numba.njit(parallel=True, cache=True)
-def _predict_batch(imgs, offsets, thresh, left, roots, prob, out):
+def _predict_batch(imgs, nodes, roots, prob, out):
     for i in numba.prange(imgs.shape[0]):
-        _predict_frame(imgs[i], offsets, thresh, left, roots, prob, out[i])
+        _predict_frame(imgs[i], nodes, roots, prob, out[i])
 
 
 @numba.njit(cache=True)
@@ -160,6 +203,11 @@ class Predictor:
         self._left = np.ascontiguousarray(forest.left, dtype=np.int64)
         self._roots = np.ascontiguousarray(forest.roots, dtype=np.int64)
         self._prob = forest.probabilities()
+        nodes = np.empty((len(forest.left), 6), np.int32)
+        nodes[:, :4] = forest.offsets
+        nodes[:, 4] = forest.thresh
+        nodes[:, 5] = forest.left
+        self._nodes = nodes
 
     def predict(self, depth: np.ndarray, prepared: bool = False) -> np.ndarray:
         """Labels of one frame (H, W) or a batch (N, H, W) of uint16 mm depth -> uint8.
@@ -170,11 +218,9 @@ class Predictor:
         d = np.ascontiguousarray(depth, dtype=np.uint16) if prepared else prepare_depth(depth)
         out = np.empty(d.shape, dtype=np.uint8)
         if d.ndim == 2:
-            _predict_frame(d, self._offsets, self._thresh, self._left, self._roots,
-                           self._prob, out)
+            _predict_frame(d, self._nodes, self._roots, self._prob, out)
         elif d.ndim == 3:
-            _predict_batch(d, self._offsets, self._thresh, self._left, self._roots,
-                           self._prob, out)
+            _predict_batch(d, self._nodes, self._roots, self._prob, out)
         else:
             raise ValueError(f"depth must be (H, W) or (N, H, W), got {d.shape}")
         return out
