@@ -1,4 +1,7 @@
-"""``vhgen forest ...``: train, eval, label, export, study (registered by vhgen.cli)."""
+"""``vhgen forest ...``: train, eval, label, export (registered by vhgen.cli).
+
+The learning-curve study is ``python benchmarks/forest_curves.py`` (it generates frames).
+"""
 
 from __future__ import annotations
 
@@ -152,15 +155,6 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_study(args: argparse.Namespace) -> int:
-    from vhgen.forest.study import run_study
-
-    res = run_study(args.out, quick=args.quick, backend=args.backend, progress=_progress)
-    print(res["table"])
-    print(f"wrote {args.out}/study.json, study.txt and plots")
-    return 0
-
-
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Register ``forest`` and its subcommands on the top-level subparsers."""
     fp = subparsers.add_parser("forest", help="train/evaluate/export body-part forests")
@@ -220,10 +214,4 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     x.add_argument("-o", "--output", required=True, help="output folder")
     x.set_defaults(func=_cmd_export)
 
-    s = fsub.add_parser("study", help="accuracy vs data, depth, trees; sensor ablation")
-    s.add_argument("--out", default="out/forest_study", help="output folder")
-    s.add_argument("--quick", action="store_true", help="small sizes (minutes)")
-    s.add_argument("--backend", choices=["egl", "osmesa"], default="egl",
-                   help="OpenGL backend for generating the study's frames")
-    s.set_defaults(func=_cmd_study)
     return fp

@@ -233,3 +233,21 @@ class Predictor:
         _tree_labels(d, self._offsets, self._thresh, self._left, int(self._roots[tree]),
                      self.forest.leaf_labels(), out)
         return out
+
+
+def truncate(forest: Forest, depth: int) -> Forest:
+    """The forest cut at ``depth``: nodes at that depth become leaves (their training
+    histograms kept). Level-wise growth draws the same samples and candidates per level
+    whatever the depth limit, so this IS the forest trained with ``--depth depth``
+    (up to the min-gain/min-samples stops, which do not depend on the limit)."""
+    left = np.where(forest.depth >= depth, -1, forest.left).astype(np.int32)
+    return Forest(forest.offsets, forest.thresh, left, forest.depth, forest.counts,
+                  forest.roots, {**forest.meta, "truncated_depth": depth})
+
+
+def first_trees(forest: Forest, k: int) -> Forest:
+    """The first ``k`` trees (trees are grown independently: same as ``--trees k``)."""
+    end = forest.tree_slice(k - 1).stop
+    return Forest(forest.offsets[:end], forest.thresh[:end], forest.left[:end],
+                  forest.depth[:end], forest.counts[:end], forest.roots[:k],
+                  {**forest.meta, "trees_used": k})
