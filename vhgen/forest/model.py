@@ -110,13 +110,25 @@ def _walk(img, x, y, scale, offsets, thresh, left, node):
 _BLOCK = 32  # pixels walked in lockstep: their dependency chains overlap in the CPU
 
 
+@numba.njit(inline="always")
+def _lo16(v):
+    return ((v & 0xFFFF) ^ 0x8000) - 0x8000  # the low int16 of an int32, sign-extended
+
+
+@numba.njit(inline="always")
+def _hi16(v):
+    return v >> 16  # arithmetic shift: the high int16, sign-extended
+
+
 @numba.njit(cache=True)
 def _predict_frame(img, nodes, roots, prob, out):
-    """nodes: (N, 6) int32 rows (du1, dv1, du2, dv2, thresh, left) - one cache line per
-    visit. Pixels are walked in blocks of _BLOCK in lockstep: one pixel's walk is a chain of
-    dependent loads (latency bound), independent pixels fill the pipeline."""
+    """nodes: (N, 4) int32 rows (du1 | dv1 << 16, du2 | dv2 << 16, thresh, left): 16 bytes,
+    four nodes per cache line. One tree at a time over all pixels (its nodes stay in cache),
+    pixels in blocks of _BLOCK walked in lockstep: one pixel's walk is a chain of dependent
+    loads (latency bound), independent pixels fill the pipeline."""
     h, w = img.shape
     c = prob.shape[1]
+    nt = roots.shape[0]
     npix = 0
     for y in range(h):
         for x in range(w):
@@ -126,52 +138,58 @@ def _predict_frame(img, nodes, roots, prob, out):
                 npix += 1
     ys = np.empty(npix, np.int64)
     xs = np.empty(npix, np.int64)
+    fys = np.empty(npix, np.float64)
+    fxs = np.empty(npix, np.float64)
+    scale = np.empty(npix, np.float64)
     k = 0
     for y in range(h):
         for x in range(w):
             if img[y, x] != BACKGROUND_MM:
                 ys[k] = y
                 xs[k] = x
+                fys[k] = y
+                fxs[k] = x
+                scale[k] = FOCAL_SCALE / np.float64(img[y, x])
                 k += 1
-    node = np.empty(_BLOCK, np.int64)
-    scale = np.empty(_BLOCK, np.float64)
-    acc = np.zeros((_BLOCK, c), np.float32)
-    for b0 in range(0, npix, _BLOCK):
-        nb = min(_BLOCK, npix - b0)
-        acc[:] = 0.0
-        for p in range(nb):
-            scale[p] = FOCAL_SCALE / np.float64(img[ys[b0 + p], xs[b0 + p]])
-        for t in range(roots.shape[0]):
-            for p in range(nb):
+    leaf = np.empty((nt, npix), np.int64)
+    for t in range(nt):
+        node = leaf[t]
+        for b0 in range(0, npix, _BLOCK):
+            nb = min(_BLOCK, npix - b0)
+            for p in range(b0, b0 + nb):
                 node[p] = roots[t]
             active = nb
             while active > 0:
                 active = 0
-                for p in range(nb):
+                for p in range(b0, b0 + nb):
                     n = node[p]
-                    lft = nodes[n, 5]
+                    lft = nodes[n, 3]
                     if lft < 0:
                         continue
                     active += 1
-                    x = xs[b0 + p]
-                    y = ys[b0 + p]
+                    x = fxs[p]
+                    y = fys[p]
                     s = scale[p]
+                    o1 = nodes[n, 0]
+                    o2 = nodes[n, 1]
                     # same arithmetic as features._probe64 (PCL trees.cpp runThroughTree)
-                    u1 = min(max(int(np.float32(x + nodes[n, 0] * s)), 0), w - 1)
-                    v1 = min(max(int(np.float32(y + nodes[n, 1] * s)), 0), h - 1)
-                    u2 = min(max(int(np.float32(x + nodes[n, 2] * s)), 0), w - 1)
-                    v2 = min(max(int(np.float32(y + nodes[n, 3] * s)), 0), h - 1)
+                    u1 = np.uint64(min(max(int(np.float32(x + _lo16(o1) * s)), 0), w - 1))
+                    v1 = np.uint64(min(max(int(np.float32(y + _hi16(o1) * s)), 0), h - 1))
+                    u2 = np.uint64(min(max(int(np.float32(x + _lo16(o2) * s)), 0), w - 1))
+                    v2 = np.uint64(min(max(int(np.float32(y + _hi16(o2) * s)), 0), h - 1))
                     f = np.int32(img[v1, u1]) - np.int32(img[v2, u2])
-                    node[p] = lft + 1 if f > nodes[n, 4] else lft
-            for p in range(nb):
-                for q in range(c):
-                    acc[p, q] += prob[node[p], q]
-        for p in range(nb):
-            best = 0
-            for q in range(1, c):
-                if acc[p, q] > acc[p, best]:
-                    best = q
-            out[ys[b0 + p], xs[b0 + p]] = best
+                    node[p] = lft + 1 if f > nodes[n, 2] else lft
+    acc = np.zeros(c, np.float32)
+    for p in range(npix):
+        acc[:] = prob[leaf[0, p]]
+        for t in range(1, nt):
+            for q in range(c):
+                acc[q] += prob[leaf[t, p], q]
+        best = 0
+        for q in range(1, c):
+            if acc[q] > acc[best]:
+                best = q
+        out[ys[p], xs[p]] = best
 
 
 @numba.njit(parallel=True, cache=True)
@@ -203,10 +221,12 @@ class Predictor:
         self._left = np.ascontiguousarray(forest.left, dtype=np.int64)
         self._roots = np.ascontiguousarray(forest.roots, dtype=np.int64)
         self._prob = forest.probabilities()
-        nodes = np.empty((len(forest.left), 6), np.int32)
-        nodes[:, :4] = forest.offsets
-        nodes[:, 4] = forest.thresh
-        nodes[:, 5] = forest.left
+        off = forest.offsets.astype(np.int32)
+        nodes = np.empty((len(forest.left), 4), np.int32)
+        nodes[:, 0] = (off[:, 0] & 0xFFFF) | (off[:, 1] << 16)
+        nodes[:, 1] = (off[:, 2] & 0xFFFF) | (off[:, 3] << 16)
+        nodes[:, 2] = forest.thresh
+        nodes[:, 3] = forest.left
         self._nodes = nodes
 
     def predict(self, depth: np.ndarray, prepared: bool = False) -> np.ndarray:
