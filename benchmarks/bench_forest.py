@@ -51,8 +51,7 @@ def complete_forest(trees: int, depth: int, num_classes: int, seed: int):
 
 def mean_path(forest, depth_mm: np.ndarray) -> float:
     """Mean number of split nodes visited per body pixel and tree (Python, small sample)."""
-    from vhgen.forest.features import prepare_depth
-    from vhgen.forest.train import _feature
+    from vhgen.forest.features import feature_at, prepare_depth
 
     d = prepare_depth(depth_mm)
     ys, xs = np.nonzero(depth_mm > 0)
@@ -63,7 +62,7 @@ def mean_path(forest, depth_mm: np.ndarray) -> float:
             node = int(forest.roots[t])
             while forest.left[node] >= 0:
                 o = forest.offsets[node]
-                f = _feature.py_func(d, int(xs[i]), int(ys[i]), *map(int, o))
+                f = feature_at.py_func(d, int(xs[i]), int(ys[i]), *map(int, o))
                 node = int(forest.left[node]) + (1 if f > forest.thresh[node] else 0)
                 steps += 1
     return steps / (forest.num_trees * len(pick))

@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numba
 import numpy as np
 
-from vhgen.forest.features import BACKGROUND_MM, FOCAL_SCALE, draw_offsets, prepare_depth
+from vhgen.forest.features import BACKGROUND_MM, draw_offsets, feature_at, prepare_depth
 from vhgen.forest.model import Forest
 
 log = logging.getLogger(__name__)
@@ -75,17 +75,6 @@ class TrainParams:
 # ----------------------------------------------------------------------------- kernels
 
 
-@numba.njit(inline="always")
-def _feature(im, x, y, du1, dv1, du2, dv2):
-    h, w = im.shape
-    scale = FOCAL_SCALE / np.float64(im[y, x])
-    u1 = min(max(int(np.float32(x + du1 * scale)), 0), w - 1)
-    v1 = min(max(int(np.float32(y + dv1 * scale)), 0), h - 1)
-    u2 = min(max(int(np.float32(x + du2 * scale)), 0), w - 1)
-    v2 = min(max(int(np.float32(y + dv2 * scale)), 0), h - 1)
-    return np.int32(im[v1, u1]) - np.int32(im[v2, u2])
-
-
 @numba.njit(parallel=True, cache=True)
 def _histograms(depths, s_img, s_x, s_y, s_lab, starts, chunk_nodes, offsets, thresh,
                 classmap, hoff, out):
@@ -103,7 +92,7 @@ def _histograms(depths, s_img, s_x, s_y, s_lab, starts, chunk_nodes, offsets, th
         du2 = offsets[b, j, 2]
         dv2 = offsets[b, j, 3]
         for s in range(starts[a], starts[a + 1]):
-            f = _feature(depths[s_img[s]], s_x[s], s_y[s], du1, dv1, du2, dv2)
+            f = feature_at(depths[s_img[s]], s_x[s], s_y[s], du1, dv1, du2, dv2)
             lo = 0
             hi = nt
             while lo < hi:
@@ -186,7 +175,7 @@ def _route(depths, s_img, s_x, s_y, s_node, split_off, split_thr, child):
         if c < 0:
             s_node[s] = -1
             continue
-        f = _feature(depths[s_img[s]], s_x[s], s_y[s], split_off[a, 0], split_off[a, 1],
+        f = feature_at(depths[s_img[s]], s_x[s], s_y[s], split_off[a, 0], split_off[a, 1],
                      split_off[a, 2], split_off[a, 3])
         s_node[s] = c + 1 if f > split_thr[a] else c
 
