@@ -75,33 +75,43 @@ class TrainParams:
 # ----------------------------------------------------------------------------- kernels
 
 
+_GROUP = 16  # candidates evaluated together per sample: the sample's image patch stays hot
+
+
 @numba.njit(parallel=True, cache=True)
 def _histograms(depths, s_img, s_x, s_y, s_lab, starts, chunk_nodes, offsets, thresh,
                 classmap, hoff, out):
     """out[hoff[b] + (j*(T+1) + bin)*C_b + classmap[b, label]] += 1 for every sample of
-    frontier node chunk_nodes[b] and candidate j; bin = #thresholds < f (right for k < bin)."""
+    frontier node chunk_nodes[b] and candidate j; bin = #thresholds < f (right for k < bin).
+
+    Tasks are (node, group of _GROUP candidates), so no two threads write the same counts;
+    within a task samples are the outer loop (the probes of one sample hit one image patch,
+    fetched once for all candidates of the group instead of once per candidate)."""
     nb, nf, nt = thresh.shape
-    for task in numba.prange(nb * nf):
-        b = task // nf
-        j = task - b * nf
+    ng = (nf + _GROUP - 1) // _GROUP
+    for task in numba.prange(nb * ng):
+        b = task // ng
+        j0 = (task - b * ng) * _GROUP
+        j1 = min(j0 + _GROUP, nf)
         a = chunk_nodes[b]
         cb = (hoff[b + 1] - hoff[b]) // (nf * (nt + 1))
-        base = hoff[b] + j * (nt + 1) * cb
-        du1 = offsets[b, j, 0]
-        dv1 = offsets[b, j, 1]
-        du2 = offsets[b, j, 2]
-        dv2 = offsets[b, j, 3]
         for s in range(starts[a], starts[a + 1]):
-            f = feature_at(depths[s_img[s]], s_x[s], s_y[s], du1, dv1, du2, dv2)
-            lo = 0
-            hi = nt
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if thresh[b, j, mid] < f:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            out[base + lo * cb + classmap[b, s_lab[s]]] += 1
+            im = depths[s_img[s]]
+            x = s_x[s]
+            y = s_y[s]
+            c = classmap[b, s_lab[s]]
+            for j in range(j0, j1):
+                f = feature_at(im, x, y, offsets[b, j, 0], offsets[b, j, 1], offsets[b, j, 2],
+                               offsets[b, j, 3])
+                lo = 0
+                hi = nt
+                while lo < hi:
+                    mid = (lo + hi) >> 1
+                    if thresh[b, j, mid] < f:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                out[hoff[b] + (j * (nt + 1) + lo) * cb + c] += 1
 
 
 @numba.njit(inline="always")
