@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +53,8 @@ def store_info(path: str | Path) -> StoreInfo:
     intr = sensor.get("intrinsics") or {}
     if "fx" not in intr:
         raise ForestError(f"{p}: store attribute sensor.intrinsics has no fx")
-    depth, labels = g["depth"], g["labels"]
+    depth: Any = g["depth"]
+    labels: Any = g["labels"]
     if depth.shape != labels.shape or depth.ndim != 3:
         raise ForestError(f"{p}: depth {depth.shape} and labels {labels.shape} differ")
     return StoreInfo(str(p), int(depth.shape[0]), str(attrs.get("label_scheme", "")),
@@ -102,16 +104,18 @@ def read_frames(frames: list[tuple[str, int, int]]) -> tuple[np.ndarray, np.ndar
     depth_parts, label_parts = [], []
     for path, fs in by_store.items():
         g = zarr.open_group(path, mode="r", zarr_format=3)
+        gd: Any = g["depth"]
+        gl: Any = g["labels"]
         idx = np.asarray(fs)
         # contiguous runs read much faster than fancy indexing on sharded arrays
         if len(idx) and np.all(np.diff(idx) == 1):
             sl = slice(int(idx[0]), int(idx[-1]) + 1)
-            depth_parts.append(g["depth"][sl])
-            label_parts.append(g["labels"][sl])
+            depth_parts.append(gd[sl])
+            label_parts.append(gl[sl])
         else:
-            depth_parts.append(np.stack([g["depth"][int(i)] for i in idx]) if len(idx) else
-                               np.zeros((0,) + g["depth"].shape[1:], np.uint16))
-            label_parts.append(np.stack([g["labels"][int(i)] for i in idx]) if len(idx) else
-                               np.zeros((0,) + g["labels"].shape[1:], np.uint8))
+            depth_parts.append(np.stack([gd[int(i)] for i in idx]) if len(idx) else
+                               np.zeros((0,) + gd.shape[1:], np.uint16))
+            label_parts.append(np.stack([gl[int(i)] for i in idx]) if len(idx) else
+                               np.zeros((0,) + gl.shape[1:], np.uint8))
     return (np.concatenate(depth_parts).astype(np.uint16, copy=False),
             np.concatenate(label_parts).astype(np.uint8, copy=False))

@@ -34,7 +34,7 @@ class FrameShard(ImageShard):
             import numba
 
             # one Ray CPU per actor: do not let numba spread over every core of the node
-            numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+            numba.set_num_threads(max(1, min(threads, numba.get_num_threads())))
         depth, labels = read_frames(frames)
         super().__init__(depth, labels, [g for _, _, g in frames], params)
 

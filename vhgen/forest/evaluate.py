@@ -155,6 +155,7 @@ def contact_sheet(shown: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
                                            (pal[np.minimum(t, num_classes - 1)], "true"),
                                            (pal[p], "predicted")]):
             draw.text((c * tw + 4, y + 1), f"frame {gid}: {title}", fill=(0, 0, 0))
-            sheet.paste(Image.fromarray(tile).resize((tw, th), Image.NEAREST), (c * tw, y + 13))
+            tile_img = Image.fromarray(tile).resize((tw, th), Image.Resampling.NEAREST)
+            sheet.paste(tile_img, (c * tw, y + 13))
     sheet.save(path)
     return path

@@ -311,7 +311,9 @@ class LocalPool:
 
 def _chunks(sizes: np.ndarray, budget_bytes: int) -> list[np.ndarray]:
     """Consecutive index ranges whose int32 histogram sizes fit the budget (>= 1 node)."""
-    out, cur, acc = [], [], 0
+    out: list[np.ndarray] = []
+    cur: list[int] = []
+    acc = 0
     for i, s in enumerate(sizes):
         if cur and acc + 4 * s > budget_bytes:
             out.append(np.asarray(cur))
