@@ -38,8 +38,8 @@ QUICK = {"train_step": 60, "train_avatars": 2, "test_step": 90, "test_avatars": 
          "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
                     "thresholds": 15, "min_samples": 8}}
 FULL = {"train_step": 20, "train_avatars": 4, "test_step": 30, "test_avatars": 3,
-        "sizes": [35, 70, 140, 280, 560, 1120, 2260], "ablation_frames": 1120,
-        "params": {"trees": 3, "depth": 20, "pixels_per_image": 500, "features": 500,
+        "sizes": [35, 70, 140, 280, 560, 1120, 2260], "ablation_frames": 560,
+        "params": {"trees": 3, "depth": 20, "pixels_per_image": 400, "features": 400,
                    "thresholds": 25, "min_samples": 16}}
 TRAIN_SENSORS = ("ideal", "kinect_v1_fast", "kinect_v1_full")
 TEST_SENSORS = ("kinect_v1_full", "ideal")
