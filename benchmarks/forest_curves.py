@@ -69,8 +69,8 @@ def scores(forest, test: str) -> dict:
     from vhgen.forest.evaluate import evaluate
 
     r = evaluate(forest, [store_info(test)])
-    return {k: r[k] for k in ("pixel_accuracy", "mean_per_class", "frames",
-                              "frames_per_second")}
+    return {"pixel_accuracy": r["pixel_accuracy"], "mean_per_class": r["mean_per_class"],
+            "test_frames": r["frames"], "frames_per_second": r["frames_per_second"]}
 
 
 def plot(res: dict, out: Path) -> None:
@@ -121,7 +121,8 @@ def plot(res: dict, out: Path) -> None:
 
 
 def table(res: dict) -> str:
-    L = [f"held-out test frames: {res['held_out']}", "",
+    L = [f"held-out test frames ({res['frames_curve'][0]['test_frames']}): {res['held_out']}",
+         "",
          "accuracy vs training frames (train kinect_v1_full, test kinect_v1_full)",
          f"{'frames':>7} {'mean/class':>10} {'pixel':>7} {'train s':>8}"]
     L += [f"{r['frames']:>7d} {r['mean_per_class']:>10.4f} {r['pixel_accuracy']:>7.4f} "
@@ -181,8 +182,8 @@ def main() -> None:
     largest = None
     for n in sizes:
         forest = train_forest([train["kinect_v1_full"]], params, max_frames=n)
-        r = {"frames": n, "train_seconds": forest.meta["train_seconds"],
-             **scores(forest, test["kinect_v1_full"])}
+        r = {**scores(forest, test["kinect_v1_full"]), "frames": n,
+             "train_seconds": forest.meta["train_seconds"]}
         res["frames_curve"].append(r)
         print(f"frames {n}: mean/class {r['mean_per_class']:.4f} pixel "
               f"{r['pixel_accuracy']:.4f} ({r['train_seconds']:.0f} s)", flush=True)

@@ -80,6 +80,10 @@ def test_cli_errors(tmp_path, capsys, boxes_store):
                    match="label scheme 'shotton31'")
     one_line_error(capsys, "forest", "train", boxes_store, "--out", out, "--depth", "0",
                    match="--depth 0")
+    one_line_error(capsys, "forest", "train", boxes_store, "--out", out, "--max-frames", "0",
+                   match="--max-frames 0")
+    empty = write_store(tmp_path / "empty.zarr", np.zeros_like(d), lab)
+    one_line_error(capsys, "forest", "train", empty, "--out", out, match="no training pixels")
     assert main(["forest", "train", boxes_store, "--out", out, *SMALL]) == 0
     capsys.readouterr()
     one_line_error(capsys, "forest", "eval", out, other, match="label scheme mismatch")

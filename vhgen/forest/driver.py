@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.errors import ForestError
 from vhgen.forest.data import check_compatible, read_frames, select_frames, store_info
 from vhgen.forest.model import Forest
 from vhgen.forest.train import ImageShard, LocalPool, TrainParams, grow_forest
@@ -75,6 +76,8 @@ def train_forest(stores: list[str], params: TrainParams, *, max_frames: int | No
     ``address`` (default: a local Ray).
     """
     params.check()
+    if max_frames is not None and max_frames < 1:
+        raise ForestError(f"--max-frames {max_frames}: must be >= 1")
     infos = [store_info(s) for s in stores]
     check_compatible(infos)
     frames = select_frames(infos, max_frames, params.seed)

@@ -330,6 +330,10 @@ def grow_tree(pool: ShardPool, tree: int, num_classes: int, params: TrainParams,
     """Grow one tree over the shards of ``pool``; returns its node arrays and per-level stats."""
     p = params
     root_counts = np.sum(pool.map("start_tree", tree, num_classes), axis=0)
+    if root_counts.sum() == 0:
+        from vhgen.errors import ForestError
+
+        raise ForestError("no training pixels: no frame has a pixel with a measurement")
     offsets: list[np.ndarray] = [np.zeros(4, np.int16)]
     thresh: list[int] = [0]
     left: list[int] = [-1]
