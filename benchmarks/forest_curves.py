@@ -39,7 +39,7 @@ QUICK = {"train_step": 60, "train_avatars": 2, "test_step": 90, "test_avatars": 
                     "thresholds": 15, "min_samples": 8}}
 FULL = {"train_step": 20, "train_avatars": 4, "test_step": 30, "test_avatars": 3,
         "sizes": [35, 70, 140, 280, 560, 1120, 2260], "ablation_frames": 560,
-        "params": {"trees": 3, "depth": 20, "pixels_per_image": 400, "features": 400,
+        "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
                    "thresholds": 25, "min_samples": 16}}
 TRAIN_SENSORS = ("ideal", "kinect_v1_fast", "kinect_v1_full")
 TEST_SENSORS = ("kinect_v1_full", "ideal")
@@ -114,7 +114,7 @@ def plot(res: dict, out: Path) -> None:
     ax.set_xticks(range(len(res["ablation"])), [r["train_sensor"] for r in res["ablation"]])
     ax.set_xlabel("training sensor")
     ax.set_ylabel("mean per-class accuracy")
-    ax.legend()
+    ax.legend(loc="lower center", fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "ablation.png", dpi=100)
     plt.close(fig)
