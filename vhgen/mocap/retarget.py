@@ -64,14 +64,14 @@ class RetargetMap:
             if v is not None and not isinstance(v, str):
                 raise ConfigError(path, f"joints.{k}", f"target must be a bone name or null, "
                                                        f"got {v!r}")
-        refs = {}
+        refs: dict[str, tuple[float, float, float]] = {}
         for k, v in (d.get("reference_directions") or {}).items():
             arr = np.asarray(v, dtype=np.float64) if isinstance(v, list) else None
             if arr is None or arr.shape != (3,) or not np.isfinite(arr).all() or \
                     np.linalg.norm(arr) == 0:
                 raise ConfigError(path, f"reference_directions.{k}",
                                   f"must be a non-zero [x, y, z], got {v!r}")
-            refs[k] = tuple(float(x) for x in arr)
+            refs[k] = (float(arr[0]), float(arr[1]), float(arr[2]))
         return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=units,
                    joints=dict(joints), reference_directions=refs, source=str(path))
 
@@ -220,8 +220,9 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
     # root height above the lowest joint in the reference pose, both skeletons
     src_world = np.empty((motion.num_joints, 3, 3))
     for j, par in enumerate(motion.parents):
-        k = np.flatnonzero(source_index == j)
-        src_world[j] = source_ref[k[0]] if len(k) else (src_world[par] if par >= 0 else np.eye(3))
+        owners = np.flatnonzero(source_index == j)
+        src_world[j] = source_ref[owners[0]] if len(owners) else (
+            src_world[par] if par >= 0 else np.eye(3))
     src_pos = np.empty((motion.num_joints, 3))
     for j, par in enumerate(motion.parents):
         src_pos[j] = 0.0 if par < 0 else src_pos[par] + src_world[par] @ motion.offsets[j]
