@@ -70,11 +70,11 @@ def mean_path(forest, depth_mm: np.ndarray) -> float:
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
+    from vhgen.bench.scenes import human_frame
     from vhgen.forest.model import Forest, Predictor
-    from vhgen.pipeline.poses import builtin_motion_path
+    from vhgen.mocap.clips import builtin_motion_path
     from vhgen.render.context import create_context
     from vhgen.sensor.model import SensorConfig
-    from vhgen.sensor.scenes import human_frame
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=50)
