@@ -230,6 +230,10 @@ def build_parser() -> argparse.ArgumentParser:
     ins.add_argument("store")
     ins.add_argument("--json", action="store_true", help="print the report as JSON")
     ins.set_defaults(func=_cmd_inspect)
+
+    from vhgen.forest.cli import add_parser as add_forest_parser
+
+    add_forest_parser(sub)
     return p
 
 
