@@ -24,7 +24,7 @@ positions, float64 metres; :func:`local_rotations` gives the parent-relative for
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
 from vhgen.errors import ConfigError, RetargetError
 from vhgen.mocap.bvh import Motion
+from vhgen.mocap.jointnames import ESSENTIAL
 from vhgen.mocap.units import detect_units, parse_units, skeleton_height
 from vhgen.rotations import min_rotation
 from vhgen.yamlio import check_keys, configs_dir, find_config, load_yaml
@@ -48,13 +49,24 @@ class RetargetMap:
     joints: dict[str, str | None]
     reference_directions: dict[str, tuple[float, float, float]]
     source: str | None = None
+    # The file's world up axis (+y for the shipped maps); see :func:`up_rotation`.
+    up: str = "+y"
+    # None: the zero-rotation rest pose is the reference and only the bones listed in
+    # reference_directions are straightened (the shipped maps). A frame number: that
+    # frame's posture (world positions, so bone-local OFFSETs do not matter) is the
+    # reference, every mapped bone is straightened (onto reference_directions, else onto
+    # the target's rest direction) and the root is turned by its body frame (up, left).
+    reference_frame: int | None = None
+    confidence: float | None = None  # automatic maps: in [0, 1]
+    notes: tuple[str, ...] = ()
+    reasons: dict[str, str] = field(default_factory=dict)  # per source joint, why
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> RetargetMap:
         path = find_config("retarget", name_or_path)
         d = load_yaml(path)
         check_keys(d, {"name", "target_rig", "units", "joints", "reference_directions",
-                       "description"},
+                       "description", "up", "reference_frame"},
                    {"name", "target_rig", "joints"}, path, "")
         units = parse_units(d.get("units", "auto"), path, "units")
         joints = d["joints"]
@@ -72,8 +84,17 @@ class RetargetMap:
                 raise ConfigError(path, f"reference_directions.{k}",
                                   f"must be a non-zero [x, y, z], got {v!r}")
             refs[k] = tuple(float(x) for x in arr)
+        up = str(d.get("up", "+y"))
+        if up not in UP_ROTATIONS:
+            raise ConfigError(path, "up", f"must be one of {', '.join(UP_ROTATIONS)}, "
+                                          f"got {d.get('up')!r}")
+        ref = d.get("reference_frame")
+        if ref is not None and (isinstance(ref, bool) or not isinstance(ref, int) or ref < 0):
+            raise ConfigError(path, "reference_frame",
+                              f"must be a frame number >= 0 (or absent), got {ref!r}")
         return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=units,
-                   joints=dict(joints), reference_directions=refs, source=str(path))
+                   joints=dict(joints), reference_directions=refs, source=str(path), up=up,
+                   reference_frame=ref)
 
     def check_target(self, rig: Rig) -> None:
         """Every bone the map names must exist in the rig."""
@@ -90,11 +111,23 @@ def load_all_maps(folder: str | Path | None = None) -> list[RetargetMap]:
     return [RetargetMap.load(p) for p in sorted(folder.glob("*.yaml"))]
 
 
-def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
-    """The map that knows every joint of ``motion`` and maps most of them.
+def missing_essentials(rmap: RetargetMap, motion: Motion) -> list[str]:
+    """Essential target parts (pelvis, head, legs, arms) that no joint of ``motion`` maps
+    to under ``rmap``, in words."""
+    mapped = {rmap.joints.get(n) for n in motion.names}
+    return [w for b, w in ESSENTIAL.items() if b not in mapped]
 
-    Raises RetargetError naming the joints the nearest map lacks when none fits.
+
+def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
+    """The shipped map that knows every joint of ``motion`` and maps most of them, if it
+    maps every essential part; otherwise an automatic map (:func:`vhgen.mocap.automap.
+    auto_map`, name ``auto``, with a confidence and an explanation per joint).
+
+    Raises RetargetError naming what is missing when the skeleton is not a complete
+    humanoid.
     """
+    from vhgen.mocap.automap import auto_map
+
     best, best_key, best_unknown = None, None, None
     for m in maps:
         unknown = [n for n in motion.names if n not in m.joints]
@@ -102,15 +135,25 @@ def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
         key = (len(unknown), -mapped)
         if best_key is None or key < best_key:
             best, best_key, best_unknown = m, key, unknown
-    if best is None:
-        raise RetargetError("no retarget maps to choose from")
-    if best_unknown:
-        raise RetargetError(
-            f"{motion.source}: unknown skeleton ({motion.num_joints} joints, root "
-            f"{motion.names[0]!r}); the nearest map {best.name!r} ({best.source}) lacks "
-            f"{len(best_unknown)} joints: {', '.join(best_unknown)}. Add a map to "
-            "configs/retarget/ (see the README).")
-    return best
+    if best is not None and not best_unknown and not missing_essentials(best, motion):
+        return best
+    return auto_map(motion)
+
+
+UP_ROTATIONS = {
+    "+y": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    "-y": ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0)),  # 180 deg about X
+    "+z": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0)),  # -90 deg about X
+    "-z": ((1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),  # +90 deg about X
+    "+x": ((0.0, 1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),  # +90 deg about Z
+    "-x": ((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),  # -90 deg about Z
+}
+
+
+def up_rotation(up: str) -> np.ndarray:
+    """(3, 3) float64 rotation taking the file's up axis (``+y``, ``-z``...) to +Y; a proper
+    rotation, so the skeleton's handedness is kept."""
+    return np.array(UP_ROTATIONS[up], dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +169,11 @@ class Retargeter:
     dialect: str
     units_m: float  # metres per file unit (declared by the map or detected)
     units_detected: bool
+    world_fix: np.ndarray = field(default_factory=lambda: np.eye(3))  # file up -> +Y
+    # worst angle between a mapped target bone and its source bone in the straightened
+    # reference pose (degrees), and that bone
+    ref_error_deg: float = 0.0
+    ref_error_bone: str = ""
 
     def apply(self, motion: Motion, frames: np.ndarray | None = None) -> tuple[np.ndarray,
                                                                               np.ndarray]:
@@ -137,6 +185,9 @@ class Retargeter:
         g, p = motion.world_transforms()
         if frames is not None:
             g, p = g[frames], p[frames]
+        if not np.array_equal(self.world_fix, np.eye(3)):
+            g = self.world_fix @ g
+            p = p @ self.world_fix.T
         f = g.shape[0]
         b = len(self.rig.names)
         out = np.empty((f, b, 3, 3), dtype=np.float64)
@@ -192,6 +243,10 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
                             f"{root_name!r}")
     b = len(rig.names)
     source_index = np.array([src_of.get(n, -1) for n in rig.names], dtype=np.int64)
+    if rmap.reference_frame is not None:
+        from vhgen.mocap.reference import bind_framed
+
+        return bind_framed(motion, rig, rmap, source_index, root_name)
 
     # rest directions. Target: head -> tail. Source: joint -> the source joint of the target
     # bone whose head sits at this bone's tail (a descendant), else the End Site.
@@ -241,10 +296,29 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
         ends_world = rest + np.where(np.isfinite(motion.end_sites), motion.end_sites, np.nan)
         _, units_m = detect_units(skeleton_height(rest, ends_world))
         detected = True
+    err, err_bone = reference_error(rig, source_index, source_ref @ src_dir[..., None],
+                                    target_ref @ tgt_dir[..., None])
     return Retargeter(rig=rig, source_index=source_index, source_ref=source_ref,
                       target_ref=target_ref, scale=float(scale),
                       source_root=int(source_index[rig.index(root_name)]), dialect=rmap.name,
-                      units_m=float(units_m), units_detected=detected)
+                      units_m=float(units_m), units_detected=detected, ref_error_deg=err,
+                      ref_error_bone=err_bone)
+
+
+def reference_error(rig: Rig, source_index: np.ndarray, src: np.ndarray,
+                    tgt: np.ndarray) -> tuple[float, str]:
+    """Worst angle (degrees) between mapped source and target bone directions (B, 3[, 1])
+    in the reference pose, over bones whose source direction is known; and that bone."""
+    src = src.reshape(len(rig.names), 3)
+    tgt = tgt.reshape(len(rig.names), 3)
+    ns, nt = np.linalg.norm(src, axis=1), np.linalg.norm(tgt, axis=1)
+    ok = (source_index >= 0) & (ns > 1e-9) & (nt > 1e-12)
+    if not ok.any():
+        return 0.0, ""
+    cos = np.sum(src[ok] * tgt[ok], axis=1) / (ns[ok] * nt[ok])
+    ang = np.rad2deg(np.arccos(np.clip(cos, -1.0, 1.0)))
+    k = int(np.argmax(ang))
+    return float(ang[k]), rig.names[int(np.flatnonzero(ok)[k])]
 
 
 def _ancestor_sets(parents: np.ndarray) -> list[set[int]]:
