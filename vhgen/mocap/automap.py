@@ -192,14 +192,12 @@ def auto_map(motion: Motion) -> RetargetMap:
     words = {"footL": "left foot", "footR": "right foot", "handL": "left hand",
              "handR": "right hand", "head": "head"}
     missing = [words[k] for k, v in key.items() if v is None]
-    found = ", ".join(f"{words[k]} {motion.names[v]!r}" for k, v in key.items() if v is not None)
     if missing:
         raise RetargetError(
             f"{src}: not a complete humanoid skeleton ({motion.num_joints} joints, root "
-            f"{motion.names[0]!r}): no {', '.join(missing)} found"
-            + (f" (found {found})" if found else "")
-            + "; refusing rather than leaving limbs at rest. Write a map by hand "
-              "(`vhgen corpus build --explain`, then --map).")
+            f"{motion.names[0]!r}): no {', '.join(missing)} found ({_recognised(sk)}); "
+            "refusing rather than leaving limbs at rest. Map it by hand: a retarget-map "
+            "YAML passed with --map.")
     fl, fr, hl, hr, head = (int(key[k]) for k in ("footL", "footR", "handL", "handR", "head"))
     pelvis = sk.lca(fl, fr)
     named_pelvis = _pick(sk, "pelvis", None)
@@ -278,8 +276,8 @@ def auto_map(motion: Motion) -> RetargetMap:
     if lacking:
         raise RetargetError(
             f"{src}: not a complete humanoid skeleton ({motion.num_joints} joints): no "
-            f"{', '.join(lacking)} found on the limb chains; refusing rather than leaving "
-            "limbs at rest.")
+            f"{', '.join(lacking)} found on the limb chains ({_recognised(sk)}); refusing "
+            "rather than leaving limbs at rest.")
 
     # geometry: world up, the subject's left, mirrored names
     g, p = motion.world_transforms()
@@ -355,6 +353,26 @@ def auto_map(motion: Motion) -> RetargetMap:
                        reference_directions={}, source=None, up=up,
                        reference_frame=ref_frame, confidence=confidence,
                        notes=tuple(notes), reasons=reasons)
+
+
+def _recognised(sk: _Skeleton, limit: int = 12) -> str:
+    """'recognised: left thigh 'femur_l', ...; not recognised: ...' for refusals."""
+    side_w = {"L": "left ", "R": "right ", None: ""}
+    rec, unrec = [], []
+    for i in sk.info:
+        if i.parts:
+            part = max(i.parts, key=lambda k: i.parts[k])
+            rec.append(f"{side_w[i.side]}{part} {i.name!r}")
+        elif i.kind in ("body", "other"):
+            unrec.append(repr(i.name))
+
+    def cut(xs: list[str]) -> str:
+        return ", ".join(xs[:limit]) + (f" and {len(xs) - limit} more" if len(xs) > limit
+                                         else "")
+    out = [f"recognised: {cut(rec)}" if rec else "no joint name recognised"]
+    if unrec:
+        out.append(f"not recognised: {cut(unrec)}")
+    return "; ".join(out)
 
 
 def _unmapped_reason(sk: _Skeleton, j: int, mapping: dict[int, str]) -> str:
