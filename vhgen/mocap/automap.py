@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -387,21 +388,82 @@ def _unmapped_reason(sk: _Skeleton, j: int, mapping: dict[int, str]) -> str:
 
 
 def map_to_yaml(rmap: RetargetMap, motion_source: str | None = None) -> str:
-    """The map as an editable retarget-map YAML (explanations as comments)."""
+    """The map as an editable retarget-map YAML (explanations as comments); loading it
+    with :meth:`RetargetMap.load` gives the same retargeting."""
+    from vhgen.mocap.units import UNITS_M
+
+    name = rmap.name if rmap.confidence is None or motion_source is None else \
+        f"auto_{Path(motion_source).stem}"
     lines = [f"# Retarget map written by `vhgen corpus build --explain` for {motion_source}.",
              "# Edit the targets (a cmu_mb bone or null) and pass the file back with --map,",
-             "# or as `retarget:` in a scene config.",
-             f"# confidence: {rmap.confidence}"]
+             "# or as `retarget:` in a scene config."]
+    if rmap.confidence is not None:
+        lines.append(f"# automatic mapping, confidence {rmap.confidence}")
     lines += [f"# note: {n}" for n in rmap.notes]
-    lines += [f"name: {rmap.name}", f"target_rig: {rmap.target_rig}", "units: auto",
-              "# the file's world up axis (+x -x +y -y +z -z)", f"up: '{rmap.up}'",
-              "# the frame whose posture is straightened into the reference pose",
-              f"reference_frame: {rmap.reference_frame}", "joints:"]
+    unit = "auto" if rmap.units_m is None else next(
+        (k for k, v in UNITS_M.items() if v == rmap.units_m), repr(rmap.units_m))
+    lines += [f"name: {name}", f"target_rig: {rmap.target_rig}", f"units: {unit}",
+              "# the file's world up axis (+x -x +y -y +z -z)", f"up: '{rmap.up}'"]
+    if rmap.reference_frame is not None:
+        lines += ["# the frame whose posture is straightened into the reference pose; every",
+                  "# mapped bone is straightened onto the rig's rest direction unless listed",
+                  "# under reference_directions",
+                  f"reference_frame: {rmap.reference_frame}"]
+    lines.append("joints:")
     width = max(len(_yaml_key(k)) for k in rmap.joints) + 1
     for k, v in rmap.joints.items():
         val = "null" if v is None else v
-        lines.append(f"  {_yaml_key(k) + ':':{width}} {val:14s} # {rmap.reasons.get(k, '')}")
+        why = rmap.reasons.get(k, "")
+        lines.append(f"  {_yaml_key(k) + ':':{width}} {val:14s}" + (f" # {why}" if why else ""))
+    if rmap.reference_directions:
+        lines.append("reference_directions:")
+        for k, d in rmap.reference_directions.items():
+            lines.append(f"  {k}: [{', '.join(f'{x:g}' for x in d)}]")
     return "\n".join(lines) + "\n"
+
+
+def explain_table(motion: Motion, rmap: RetargetMap, rt: object) -> str:
+    """Human-readable mapping of one file: a header (dialect or auto, confidence, up axis,
+    reference frame, units, reference-pose error, notes) and one row per source joint."""
+    from vhgen.mocap.retarget import Retargeter
+
+    assert isinstance(rt, Retargeter)
+    how = "automatic" if rmap.confidence is not None else f"map {rmap.name!r}"
+    conf = 1.0 if rmap.confidence is None else rmap.confidence
+    ref = "rest (OFFSETs)" if rmap.reference_frame is None else f"frame {rmap.reference_frame}"
+    out = [f"{motion.source}: {motion.num_joints} joints, {motion.num_frames} frames",
+           f"mapping: {how}, confidence {conf:.2f}; up {rmap.up}; reference pose: {ref}; "
+           f"units {rt.units_m:g} m{' (detected)' if rt.units_detected else ''}; "
+           f"worst reference-pose bone error {rt.ref_error_deg:.1f} deg "
+           f"({rt.ref_error_bone or '-'})"]
+    out += [f"note: {n}" for n in rmap.notes]
+    depth = [0] * motion.num_joints
+    for j, par in enumerate(motion.parents):
+        depth[j] = 0 if par < 0 else depth[par] + 1
+    labels = [" " * min(depth[j], 8) + n for j, n in enumerate(motion.names)]
+    w = max(len(lab) for lab in labels)
+    out.append(f"{'joint':{w}}  {'target bone':14s}  why")
+    for lab, n in zip(labels, motion.names, strict=True):
+        t = rmap.joints.get(n)
+        out.append(f"{lab:{w}}  {t or '-':14s}  {rmap.reasons.get(n, '')}")
+    return "\n".join(out)
+
+
+def report_table(entries: list[dict]) -> str:
+    """The corpus report as a table: file, status, dialect or auto, confidence, poses kept,
+    worst reference-pose bone error."""
+    rows = [("file", "status", "mapping", "conf", "up", "frames", "kept", "ref err deg",
+             "note / error")]
+    for e in entries:
+        note = e.get("error") or "; ".join(e.get("notes", []))
+        rows.append((Path(e["file"]).name, e["status"], e.get("dialect") or "-",
+                     f"{e['confidence']:.2f}" if "confidence" in e else "-", e.get("up", "-"),
+                     str(e.get("frames", 0)), str(e.get("poses_kept", 0)),
+                     f"{e['ref_error_deg']:.1f} ({e.get('ref_error_bone', '')})"
+                     if "ref_error_deg" in e else "-", note[:90]))
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]) - 1)]
+    return "\n".join("  ".join(f"{r[c]:{widths[c]}}" for c in range(len(widths))) + "  " + r[-1]
+                     for r in rows)
 
 
 def _yaml_key(k: str) -> str:

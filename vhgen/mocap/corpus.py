@@ -44,20 +44,27 @@ class SparsifySettings:
 _WORKER: dict = {}
 
 
-def _init_worker(asset_dir: str, map_dir: str | None, units_m: float | None) -> None:
+def _init_worker(asset_dir: str, map_dir: str | None, units_m: float | None,
+                 map_file: str | None = None) -> None:
     from vhgen.body.mesh import load_base_mesh, load_rig
-    from vhgen.mocap.retarget import load_all_maps
+    from vhgen.mocap.retarget import RetargetMap, load_all_maps
 
     base = load_base_mesh(Path(asset_dir))
     _WORKER["rig"] = load_rig(Path(asset_dir), base.vertices, base.vertex_groups)
-    _WORKER["maps"] = load_all_maps(map_dir)
+    # one map for every file (--map), or the shipped maps with automatic mapping
+    _WORKER["maps"] = RetargetMap.load(map_file) if map_file else load_all_maps(map_dir)
     _WORKER["units_m"] = units_m
 
 
 def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool = False) -> dict:
     """Read, detect, retarget, ground one file; never raises for bad input."""
     from vhgen.mocap.bvh import read_bvh
-    from vhgen.mocap.retarget import build_retargeter, detect_dialect, local_rotations
+    from vhgen.mocap.retarget import (
+        build_retargeter,
+        detect_dialect,
+        local_rotations,
+        mapping_report,
+    )
     from vhgen.pipeline.poses import ground_offset
 
     entry = {"file": name, "status": "ok", "frames": 0, "poses_read": 0, "poses_kept": 0,
@@ -65,10 +72,12 @@ def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool =
     try:
         motion = read_bvh(path, allow_truncated=allow_truncated)
         entry["frames"] = motion.num_frames
-        rmap = detect_dialect(motion, _WORKER["maps"])
+        maps = _WORKER["maps"]
+        rmap = detect_dialect(motion, maps) if isinstance(maps, list) else maps
         entry["dialect"] = rmap.name
         rig = _WORKER["rig"]
         rt = build_retargeter(motion, rig, rmap)
+        entry.update(mapping_report(rmap, rt))
         rot, root = rt.apply(motion)
         root = root.copy()
         root[:, 1] += ground_offset(rig, rot, root)
@@ -85,7 +94,8 @@ def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool =
 def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettings,
                  asset_dir: str | Path | None = None, report: str | Path | None = None,
                  workers: int | None = None, units_m: float | None = None,
-                 strict: bool = False, map_dir: str | Path | None = None) -> dict:
+                 strict: bool = False, map_dir: str | Path | None = None,
+                 map_file: str | Path | None = None) -> dict:
     """Read every BVH file under ``inputs``, sparsify all their poses, write the table.
 
     Returns a summary; raises VhgenError if no pose is usable (or, with ``strict``, if any
@@ -100,7 +110,8 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
     asset_dir = resolve_asset_dir(asset_dir)
     files = expand_motion_paths(list(inputs))
     workers = workers or os.cpu_count() or 1
-    init = (str(asset_dir), None if map_dir is None else str(map_dir), units_m)
+    init = (str(asset_dir), None if map_dir is None else str(map_dir), units_m,
+            None if map_file is None else str(map_file))
     if workers > 1 and len(files) > 1:
         with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=init) as ex:
             results = list(ex.map(_process_file, [n for n, _ in files],

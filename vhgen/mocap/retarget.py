@@ -305,6 +305,17 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
                       ref_error_bone=err_bone)
 
 
+def mapping_report(rmap: RetargetMap, rt: Retargeter) -> dict:
+    """Report fields of one file's mapping: how it was chosen, confidence (1.0 for a map
+    that names every joint: shipped or given), the straightened reference pose's worst
+    bone-direction error and notes (conflicts such as mirrored names)."""
+    how = "auto" if rmap.confidence is not None else "map"
+    return {"mapping": how, "confidence": 1.0 if rmap.confidence is None else rmap.confidence,
+            "up": rmap.up, "reference_frame": rmap.reference_frame,
+            "ref_error_deg": round(rt.ref_error_deg, 3), "ref_error_bone": rt.ref_error_bone,
+            "notes": list(rmap.notes)}
+
+
 def reference_error(rig: Rig, source_index: np.ndarray, src: np.ndarray,
                     tgt: np.ndarray) -> tuple[float, str]:
     """Worst angle (degrees) between mapped source and target bone directions (B, 3[, 1])
