@@ -134,6 +134,16 @@ def _align(sk: _Skeleton, chain: list[int], parts: list[tuple[str, bool]]
     return best[1], ev
 
 
+def _named_first(sk: _Skeleton, joints: list[int]) -> list[int]:
+    """The joints whose names say they are spine/neck. Unrecognised names take a spine or
+    neck bone only in a skeleton whose names are mostly unrecognised (otherwise an unnamed
+    helper inserted in a named spine folds instead of taking a target bone)."""
+    named = [j for j in joints if sk.info[j].parts]
+    body = [i for i in sk.info if i.kind in ("body", "other")]
+    anonymous = sum(1 for i in body if i.kind == "other") > 0.5 * len(body)
+    return joints if anonymous and not named else named
+
+
 def _spread(joints: list[int], targets: list[str]) -> dict[int, str]:
     """First and last joints take the first and last targets; middle ones fold."""
     if not joints or not targets:
@@ -230,10 +240,10 @@ def auto_map(motion: Motion) -> RetargetMap:
         got, ev = _align(sk, leg[:-1], [("hipjoint", False), ("thigh", True), ("shin", True)])
         got[foot] = "foot"
         ev[foot] = info[foot].parts.get("foot", 0.0)
-        toes = [c for c in sk.children[foot] if info[c].kind == "body" and
-                info[c].parts.get("toe", 0) > 0]
+        toes = [c for c in range(len(info)) if foot in sk.ancestors[c] and
+                info[c].kind == "body" and info[c].parts.get("toe", 0) > 0]
         if toes:
-            toe = max(toes, key=lambda c: info[c].parts["toe"])
+            toe = max(toes, key=lambda c: (info[c].parts["toe"], -len(sk.ancestors[c])))
             got[toe], ev[toe] = "toe", info[toe].parts["toe"]
         arm = sk.path(chest, hand) if chest != hand else []
         got_a, ev_a = _align(sk, arm[:-1], [("clavicle", False), ("upperarm", True),
@@ -251,7 +261,8 @@ def auto_map(motion: Motion) -> RetargetMap:
                       f"{part}: position on the {limb} chain")
     # spine: pelvis (excl.) .. chest (incl.); neck: chest (excl.) .. head (excl.)
     if chest != pelvis:
-        spine = [j for j in sk.path(pelvis, chest) if info[j].kind in ("body", "other")]
+        spine = _named_first(sk, [j for j in sk.path(pelvis, chest)[:-1]
+                                  if info[j].kind in ("body", "other")]) + [chest]
         chest_is_neck = info[chest].parts.get("neck", 0) > max(
             info[chest].parts.get("chest", 0), info[chest].parts.get("spine", 0))
         lower = [j for j in spine if j != chest]
@@ -265,8 +276,8 @@ def auto_map(motion: Motion) -> RetargetMap:
             why[j] = ("chest: where the arm chains meet" if j == chest
                       else "spine: between pelvis and chest")
     top = chest if sk.is_anc(chest, head) else pelvis
-    necks = [j for j in sk.path(top, head)[:-1] if info[j].kind in ("body", "other")
-             and j not in mapping]
+    necks = _named_first(sk, [j for j in sk.path(top, head)[:-1]
+                              if info[j].kind in ("body", "other") and j not in mapping])
     neck_targets = ["Neck1"] if "Neck" in mapping.values() else ["Neck", "Neck1"]
     for j, t in _spread(necks, neck_targets).items():
         mapping[j] = t

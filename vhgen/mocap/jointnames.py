@@ -23,7 +23,7 @@ _PREFIX_TOKENS = {"mixamorig", "bip", "bip01", "bip001", "character", "def", "or
                   "jnt", "bone", "rig", "skel"}
 _LEFT = {"l", "left", "lft", "lf"}
 _RIGHT = {"r", "right", "rt", "rgt"}
-_FINGER = {"thumb", "index", "middle", "mid", "ring", "pinky", "pinkie", "little", "finger",
+_FINGER = {"thumb", "index", "middle", "ring", "pinky", "pinkie", "little", "finger",
            "fingers", "carpal", "metacarpal", "fingerbase"}
 _END = {"end", "nub", "tip", "top", "site", "endsite", "dummy"}
 _TWIST = {"roll", "twist", "bend", "share", "helper", "aux"}
@@ -116,7 +116,9 @@ def classify(name: str) -> NameInfo:
         core = core[:-1]
     tokset = set(core)
     kind = "body"
-    if tokset & _FINGER or ("in" in tokset and "hand" in tokset):
+    # "mid" is a finger only with a side (daz lMid1); Kinect's SpineMid is the spine
+    if tokset & _FINGER or ("in" in tokset and "hand" in tokset) or \
+            (side and "mid" in tokset):
         kind = "finger"
     elif tokset & _END and len(core) > 1:
         kind = "end"

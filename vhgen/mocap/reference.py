@@ -56,14 +56,22 @@ def _continuation(rig: Rig, source_index: np.ndarray, k: int) -> int:
 
 def _tip(motion: Motion, j: int, gw: np.ndarray, pw: np.ndarray,
          children: list[list[int]]) -> np.ndarray:
-    """Source vector of joint j with no mapped continuation: End Site, else the mean of its
-    end-marker and finger children (never eyes or other side branches); 0 if none."""
+    """Source vector of joint j with no mapped continuation: its End Site, else the mean
+    of the points (joints and End Sites) of its end-marker and finger subtrees that are not
+    at j itself (fingers often start at the wrist); never eyes or other side branches.
+    0 if there is none."""
     if np.isfinite(motion.end_sites[j]).all() and np.linalg.norm(motion.end_sites[j]) > 1e-9:
         return gw[j] @ motion.end_sites[j]
-    kids = [c for c in children[j] if classify(motion.names[c]).kind in ("end", "finger")]
-    if kids:
-        return np.mean(pw[kids], axis=0) - pw[j]
-    return np.zeros(3)
+    pts = []
+    stack = [c for c in children[j] if classify(motion.names[c]).kind in ("end", "finger")]
+    while stack:
+        c = stack.pop()
+        pts.append(pw[c])
+        if np.isfinite(motion.end_sites[c]).all():
+            pts.append(pw[c] + gw[c] @ motion.end_sites[c])
+        stack.extend(children[c])
+    vec = [q - pw[j] for q in pts if np.linalg.norm(q - pw[j]) > 1e-9]
+    return np.mean(vec, axis=0) if vec else np.zeros(3)
 
 
 def _body_frame(left: np.ndarray, up: np.ndarray) -> np.ndarray | None:
