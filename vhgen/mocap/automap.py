@@ -179,6 +179,30 @@ def _foot_forward(sk: _Skeleton, foot: int, toe: int | None, g: np.ndarray,
     return np.zeros_like(p[:, foot])
 
 
+def _forward(sk: _Skeleton, inv: dict[str, int], g: np.ndarray, p: np.ndarray,
+             upv: np.ndarray) -> tuple[np.ndarray | None, str]:
+    """(F, 3) horizontal forward of the subject per frame (its length weighs the frame),
+    from the feet (heel to toe) if they point somewhere horizontal, else from the knees
+    (which bend forward); None if neither says anything."""
+    def horiz(v: np.ndarray) -> np.ndarray:
+        return v - np.outer(v @ upv, upv)
+    feet = [_foot_forward(sk, inv[f"{s}Foot"], inv.get(f"{s}ToeBase"), g, p)
+            for s in ("Left", "Right")]
+    fh = horiz(feet[0] + feet[1])
+    length = np.linalg.norm(feet[0], axis=1) + np.linalg.norm(feet[1], axis=1)
+    if float(np.linalg.norm(fh, axis=1).mean()) > 0.3 * float(length.mean()) > 0:
+        return _unit(fh), "feet"
+    knee = np.zeros_like(fh)
+    leg = 0.0
+    for s in ("Left", "Right"):
+        hip, kn, ank = (p[:, inv[f"{s}{b}"]] for b in ("UpLeg", "Leg", "Foot"))
+        knee += horiz(kn - 0.5 * (hip + ank))
+        leg += float(np.linalg.norm(ank - hip, axis=1).mean())
+    if leg > 0 and float(np.linalg.norm(knee, axis=1).mean()) > 0.02 * leg:
+        return knee / leg, "knees"
+    return None, ""
+
+
 def auto_map(motion: Motion) -> RetargetMap:
     """An automatic retarget map for ``motion``; raises RetargetError if not humanoid."""
     sk = _skeleton(motion)
@@ -298,22 +322,20 @@ def auto_map(motion: Motion) -> RetargetMap:
     up_vec = _unit(p[:, head] - feet_mid).mean(axis=0)
     up = _snap_axis(up_vec)
     upv = np.asarray(AXES[up])
-    toe_of = {s: next((j for j, t in mapping.items() if t == f"{'Left' if s == 'L' else 'Right'}"
-                       "ToeBase"), None) for s in "LR"}
-    fwd = _foot_forward(sk, fl, toe_of["L"], g, p) + _foot_forward(sk, fr, toe_of["R"], g, p)
-    fwd = fwd - np.outer(fwd @ upv, upv)
     conf_factor = 1.0
     inv = {t: j for j, t in mapping.items()}
-    if np.linalg.norm(fwd, axis=1).mean() < 1e-9:
-        notes.append("no foot direction: left/right taken from the names only")
+    fwd, cue = _forward(sk, inv, g, p, upv)
+    if fwd is None:
+        notes.append("no forward cue (feet or knees): left/right taken from the names only")
         conf_factor *= 0.9
     else:
-        left_geo = _unit(np.cross(upv, _unit(fwd)))
+        left_geo = np.cross(upv, fwd)  # (F, 3), per-frame weights in its length
+        weight = float(np.linalg.norm(left_geo, axis=1).mean())
         votes = []
         for a, b in (("LeftUpLeg", "RightUpLeg"), ("LeftArm", "RightArm"),
                      ("LeftHand", "RightHand")):
             d = _unit(p[:, inv[a]] - p[:, inv[b]])
-            votes.append(float(np.median(np.sum(d * left_geo, axis=1))))
+            votes.append(float(np.mean(np.sum(d * left_geo, axis=1))) / weight)
         if all(v < -0.2 for v in votes):
             swap = {"Left": "Right", "Right": "Left", "LHip": "RHip", "RHip": "LHip"}
             for j, t in list(mapping.items()):
@@ -323,12 +345,12 @@ def auto_map(motion: Motion) -> RetargetMap:
                         why[j] += "; side swapped by geometry"
                         break
             notes.append("mirrored naming: joints named left are on the subject's right "
-                         f"(up {up}, feet point forward); sides swapped by geometry")
+                         f"(up {up}, forward from the {cue}); sides swapped by geometry")
             conf_factor *= 0.8
         elif not all(v > 0.2 for v in votes):
             notes.append("left/right: names and geometry disagree or are unclear "
-                         f"(votes thighs/arms/hands {', '.join(f'{v:+.2f}' for v in votes)}); "
-                         "kept the names")
+                         f"(votes thighs/arms/hands {', '.join(f'{v:+.2f}' for v in votes)}, "
+                         f"forward from the {cue}); kept the names")
             conf_factor *= 0.7
     inv = {t: j for j, t in mapping.items()}
     if motion.parents[pelvis] >= 0:
