@@ -228,3 +228,51 @@ def drop_subtree(m: Motion, top: int) -> Motion:
     parents = [new_of[int(m.parents[j])] if m.parents[j] >= 0 else -1 for j in keep]
     return make(m, [m.names[j] for j in keep], parents, m.offsets[keep], m.end_sites[keep],
                 m.rotations[:, keep], m.translations[:, keep])
+
+
+def to_bvh_text(m: Motion, rng: np.random.Generator) -> str:
+    """BVH text of ``m`` with position channels on every joint, a random Euler order per
+    joint, some angles shifted by +-360 deg, leading spaces on data rows, CRLF line ends and
+    a blank line after MOTION (traps seen in real exports)."""
+    from vhgen.rotations import matrix_to_euler
+
+    orders = [str(rng.choice(["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])) for _ in m.names]
+    kids: list[list[int]] = [[] for _ in m.names]
+    for j, p in enumerate(m.parents):
+        if p >= 0:
+            kids[p].append(j)
+    lines = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        pad = "  " * depth
+        kw = "ROOT" if m.parents[j] < 0 else "JOINT"
+        lines.append(f"{pad}{kw} {m.names[j]}")
+        lines.append(pad + "{")
+        lines.append(f"{pad}  OFFSET {' '.join(repr(float(x)) for x in m.offsets[j])}")
+        rot = " ".join(f"{a}rotation" for a in orders[j])
+        lines.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot}")
+        for c in kids[j]:
+            emit(c, depth + 1)
+        if np.isfinite(m.end_sites[j]).all():
+            lines.extend([f"{pad}  End Site", pad + "  {",
+                          f"{pad}    OFFSET {' '.join(repr(float(x)) for x in m.end_sites[j])}",
+                          pad + "  }"])
+        lines.append(pad + "}")
+
+    emit(int(np.flatnonzero(m.parents < 0)[0]), 0)
+    order_idx = []
+
+    def walk(j: int) -> None:
+        order_idx.append(j)
+        for c in kids[j]:
+            walk(c)
+    walk(int(np.flatnonzero(m.parents < 0)[0]))
+    cols = []
+    for j in order_idx:
+        ang = np.rad2deg(matrix_to_euler(m.rotations[:, j], orders[j]))
+        ang += 360.0 * rng.integers(-1, 2, size=ang.shape)
+        cols += [m.translations[:, j], ang]
+    data = np.concatenate(cols, axis=1)
+    lines += ["MOTION", "", f"Frames: {m.num_frames}", f"Frame Time: {m.frame_time!r}"]
+    lines += [" " + " ".join(repr(float(x)) for x in row) for row in data]
+    return "\r\n".join(lines) + "\r\n"

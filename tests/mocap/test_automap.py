@@ -284,3 +284,17 @@ def test_bad_flags_one_line(capsys, argv, field):
     assert main(["corpus", "build", *argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("vhgen: error:") and field in err[0], err
+
+
+def test_positions_on_every_joint_and_mixed_euler_orders_as_text(body, shared_mocap):
+    """Through the parser: 6 channels on every joint, random Euler orders, angles beyond
+    +-180, CRLF, a blank line after MOTION, leading spaces: same mapping, same poses."""
+    m = fz.crop(read_bvh(shared_mocap / "02_01.bvh"), 60)
+    f = parse_bvh(fz.to_bvh_text(fz.reorder(m, np.random.default_rng(3)),
+                                 np.random.default_rng(3)), "text.bvh")
+    assert all(len(c) == 6 for c in f.channels)
+    rmap0, rot0, root0, _ = _target(m, body.rig)
+    rmap1, rot1, root1, _ = _target(f, body.rig)
+    assert {n: rmap1.joints[n] for n in m.names} == rmap0.joints
+    np.testing.assert_allclose(rot1, rot0, atol=1e-6)
+    np.testing.assert_allclose(root1, root0, atol=1e-6)
