@@ -21,12 +21,13 @@ from dataclasses import dataclass, field
 _TOKEN = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+")
 _PREFIX_TOKENS = {"mixamorig", "bip", "bip01", "bip001", "character", "def", "org", "mch",
                   "jnt", "bone", "rig", "skel"}
-_LEFT = {"l", "left", "lft", "lf"}
+_LEFT = {"l", "left", "lft"}
 _RIGHT = {"r", "right", "rt", "rgt"}
 _FINGER = {"thumb", "index", "middle", "ring", "pinky", "pinkie", "little", "finger",
            "fingers", "carpal", "metacarpal", "fingerbase"}
 _END = {"end", "nub", "tip", "top", "site", "endsite", "dummy"}
-_TWIST = {"roll", "twist", "bend", "share", "helper", "aux"}
+_TWIST = {"roll", "twist", "share", "helper", "aux"}
+_MODIFIERS = ("bend", "lower", "upper", "base", "joint")  # daz Genesis lThighBend, chestUpper
 
 # base name (side and trailing digits removed, tokens joined) -> {part: score}
 # Parts: pelvis hipjoint thigh shin foot toe spine chest neck head clavicle upperarm forearm
@@ -42,6 +43,8 @@ _UNSIDED: dict[str, dict[str, float]] = {
     "thorax": {"chest": 1.0}, "ribcage": {"chest": 0.9}, "csbvh": {"chest": 0.6},
     "neck": {"neck": 1.0}, "shouldercenter": {"neck": 0.9}, "spineshoulder": {"neck": 0.9},
     "neckbase": {"neck": 1.0}, "necklower": {"neck": 1.0}, "neckupper": {"neck": 1.0},
+    "lowerneck": {"neck": 1.0}, "upperneck": {"neck": 1.0},  # ASF/AMC
+    "upperback": {"spine": 1.0}, "midback": {"spine": 0.9},
     "c": {"neck": 0.8},  # Xsens/anatomical C7
     "head": {"head": 1.0}, "skull": {"head": 0.9},
 }
@@ -59,6 +62,8 @@ _SIDED: dict[str, dict[str, float]] = {
     "shoulder": {"clavicle": 0.8, "upperarm": 0.6},
     "arm": {"upperarm": 0.8, "forearm": 0.2}, "upperarm": {"upperarm": 1.0},
     "shldr": {"upperarm": 0.9}, "humerus": {"upperarm": 1.0}, "armupper": {"upperarm": 1.0},
+    "uarm": {"upperarm": 1.0}, "farm": {"forearm": 1.0},  # OptiTrack Motive LUArm, LFArm
+    "uleg": {"thigh": 1.0},
     "forearm": {"forearm": 1.0}, "lowerarm": {"forearm": 1.0}, "elbow": {"forearm": 1.0},
     "armlower": {"forearm": 1.0}, "radius": {"forearm": 0.9},
     "hand": {"hand": 0.95}, "wrist": {"hand": 1.0},
@@ -87,7 +92,10 @@ def tokenize(name: str) -> list[str]:
     """Lower-case tokens: ``'mixamorig:LeftUpLeg'`` -> ``['left', 'up', 'leg']``."""
     if ":" in name:  # namespace (mixamorig:, Character1:, rig:)
         name = name.rsplit(":", 1)[1]
-    toks = [t.lower() for t in _TOKEN.findall(name)]
+    raw = _TOKEN.findall(name)
+    if raw and len(raw[0]) == 2 and raw[0][0] in "LR" and raw[0].isupper() and len(raw) > 1:
+        raw = [raw[0][0], raw[0][1]] + raw[1:]  # OptiTrack Motive "LUArm" -> L U Arm
+    toks = [t.lower() for t in raw]
     # drop tool prefixes and their numbers ("bip 01", "character 1")
     while len(toks) > 1 and (toks[0] in _PREFIX_TOKENS or toks[0].isdigit()):
         toks = toks[1:]
@@ -110,6 +118,11 @@ def classify(name: str) -> NameInfo:
     elif len(words) > 1 and len(core) > 1 and core[-2] in _LEFT | _RIGHT and core[-1].isdigit():
         side = "L" if core[-2] in _LEFT else "R"
         core = core[:-2] + core[-1:]
+    if side is None and len(words) == 1 and core and core[0][:1] in ("l", "r") and \
+            core[0][1:] in _SIDED:
+        # ASF/AMC-style lower-case names: lfemur, rhumerus, lhipjoint
+        side = "L" if core[0][0] == "l" else "R"
+        core = [core[0][1:]] + core[1:]
     index = None
     while core and core[-1].isdigit():
         index = int(core[-1]) if index is None else index
@@ -134,6 +147,15 @@ def classify(name: str) -> NameInfo:
             parts = {k: 0.5 * v for k, v in _SIDED.get(base, {}).items()}
         if not parts and index is not None and base in ("spine", "chest", "neck"):
             parts = dict(_UNSIDED[base])
+        if not parts and len(core) > 1:
+            # a modifier word around a known part (lThighBend, chestUpper, abdomenLower)
+            for mod in _MODIFIERS:
+                for cand in ("".join(t for t in core if t != mod),):
+                    if mod in core and cand in table:
+                        parts = {k: 0.9 * v for k, v in table[cand].items()}
+                        break
+                if parts:
+                    break
         if not parts:
             kind = "other"
     return NameInfo(name=name, tokens=tuple(toks), side=side, base=base, index=index,
