@@ -56,6 +56,12 @@ CONVENTIONS: dict[str, dict[str, str]] = {
                      ["DEF-hipjoint.{S}", "DEF-thigh.{S}", "DEF-shin.{S}", "DEF-foot.{S}",
                       "DEF-toe.{S}", "DEF-shoulder.{S}", "DEF-upper_arm.{S}",
                       "DEF-forearm.{S}", "DEF-hand.{S}"]),
+    "motive": _table(["Hip", "Ab", "Spine", "Chest", "Neck", "Neck2", "Head"],
+                     ["{S}HipJoint", "{S}Thigh", "{S}Shin", "{S}Foot", "{S}Toe", "{S}Shoulder",
+                      "{S}UArm", "{S}FArm", "{S}Hand"]),
+    "asf": _table(["hips", "lowerback", "upperback", "thorax", "lowerneck", "upperneck", "head"],
+                  ["{l}hipjoint", "{l}femur", "{l}tibia", "{l}foot", "{l}toes", "{l}clavicle",
+                   "{l}humerus", "{l}radius", "{l}wrist"]),
 }
 
 
