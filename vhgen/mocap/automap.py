@@ -67,14 +67,19 @@ class _Skeleton:
         return b
 
 
-def _skeleton(motion: Motion) -> _Skeleton:
-    n = motion.num_joints
-    children: list[list[int]] = [[] for _ in range(n)]
+def joint_tree(parents: np.ndarray) -> tuple[list[list[int]], list[set[int]]]:
+    """Children and ancestor sets of every joint (parents before children)."""
+    children: list[list[int]] = [[] for _ in range(len(parents))]
     ancestors: list[set[int]] = []
-    for j, p in enumerate(motion.parents):
+    for j, p in enumerate(parents):
         if p >= 0:
             children[p].append(j)
         ancestors.append(set() if p < 0 else ancestors[p] | {int(p)})
+    return children, ancestors
+
+
+def _skeleton(motion: Motion) -> _Skeleton:
+    children, ancestors = joint_tree(motion.parents)
     seg = np.linalg.norm(motion.translations[0], axis=1)
     seg[motion.parents < 0] = 0.0
     return _Skeleton(motion, [classify(nm) for nm in motion.names], children, ancestors, seg)

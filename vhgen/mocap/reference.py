@@ -26,6 +26,7 @@ import numpy as np
 from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
 from vhgen.errors import RetargetError
+from vhgen.mocap.automap import joint_tree
 from vhgen.mocap.bvh import Motion
 from vhgen.mocap.jointnames import classify
 from vhgen.mocap.retarget import (
@@ -100,12 +101,7 @@ def bind_framed(motion: Motion, rig: Rig, rmap: RetargetMap, source_index: np.nd
     gw = w @ g[f_ref]
     pw = p[f_ref] @ w.T
     nb, nj = len(rig.names), motion.num_joints
-    children: list[list[int]] = [[] for _ in range(nj)]
-    ancestors: list[set[int]] = []
-    for j, par in enumerate(motion.parents):
-        if par >= 0:
-            children[par].append(j)
-        ancestors.append(set() if par < 0 else ancestors[par] | {int(par)})
+    children, ancestors = joint_tree(motion.parents)
 
     src_vec = np.zeros((nb, 3))
     tgt_vec = rig.tails - rig.heads
