@@ -298,3 +298,29 @@ def test_positions_on_every_joint_and_mixed_euler_orders_as_text(body, shared_mo
     assert {n: rmap1.joints[n] for n in m.names} == rmap0.joints
     np.testing.assert_allclose(rot1, rot0, atol=1e-6)
     np.testing.assert_allclose(root1, root0, atol=1e-6)
+
+
+def test_scene_config_takes_a_written_map_relative_to_itself(tmp_path, body):
+    """`retarget: my.map.yaml` in a scene config, as --explain wrote it, drives load_poses
+    (the `vhgen generate` path) exactly like the automatic mapping."""
+    from vhgen.config import JobConfig
+    from vhgen.errors import ConfigError
+    from vhgen.pipeline.poses import load_poses
+
+    src = DIALECTS / "AV_8Walk_Meredith_HVHA_Rep1.bvh"
+    (tmp_path / "maps").mkdir()
+    assert main(["corpus", "build", "--explain", str(src), "-o",
+                 str(tmp_path / "maps" / "sfu.yaml")]) == 0
+    scene = (Path(__file__).resolve().parents[2] / "configs" / "scenes" / "default.yaml")
+    text = scene.read_text().replace("motions: [builtin:demo]", f"motions: [{src}]")
+    cfg_path = tmp_path / "scene.yaml"
+    cfg_path.write_text(text.replace("retarget: auto", "retarget: maps/sfu.yaml"))
+    cfg = JobConfig.load(cfg_path)
+    assert cfg.retarget == str((tmp_path / "maps" / "sfu.yaml").resolve())
+    by_map = load_poses(cfg.motions, body.rig, RetargetMap.load(cfg.retarget), cfg.poses)
+    auto = load_poses(cfg.motions, body.rig, load_all_maps(), cfg.poses)
+    assert auto.report[0]["dialect"] == "auto" and by_map.num_poses == auto.num_poses > 0
+    np.testing.assert_array_equal(by_map.rotations, auto.rotations)
+    cfg_path.write_text(text.replace("retarget: auto", "retarget: maps/missing.yaml"))
+    with pytest.raises(ConfigError, match="retarget: map file .*missing.yaml does not exist"):
+        JobConfig.load(cfg_path)
