@@ -127,8 +127,14 @@ def test_every_shared_file_maps_grounds_and_faces(body, rel):
     assert np.mean(lt_x[up_ok] > 0) > 0.9 and np.mean(lh_x[up_ok] > 0) > 0.6, rel
 
 
-def test_dialect_files_conventions():
-    """Z-up, mirrored Kinect names, Rokoko bone-local OFFSETs: read off the geometry."""
+def test_dialect_files_conventions(body):
+    """Z-up, mirrored Kinect names, Rokoko bone-local OFFSETs, units: off the geometry."""
+    units = {p.name: build_retargeter(m, body.rig, auto_map(m)).units_m
+             for p in DIALECTS.glob("*.bvh") for m in [read_bvh(p)]}
+    assert units["jesse_dance.bvh"] == units["test.bvh"] == 0.01  # cm
+    assert units["2017-10-19-11-14-48.bvh"] == 0.01
+    assert units["AV_8Walk_Meredith_HVHA_Rep1.bvh"] == 0.0254  # inches
+    assert 0.03 < units["jumping.bvh"] < 0.05  # no named unit fits: from the size alone
     up = {p.name: auto_map(read_bvh(p)).up for p in DIALECTS.glob("*.bvh")}
     assert up == {"jumping.bvh": "+z", "jesse_dance.bvh": "+y", "test.bvh": "+y",
                   "2017-10-19-11-14-48.bvh": "+y", "AV_8Walk_Meredith_HVHA_Rep1.bvh": "+y"}

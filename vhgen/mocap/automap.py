@@ -34,7 +34,7 @@ import numpy as np
 from vhgen.errors import RetargetError
 from vhgen.mocap.bvh import Motion
 from vhgen.mocap.jointnames import ESSENTIAL, PART_BONES, NameInfo, classify
-from vhgen.mocap.retarget import RetargetMap
+from vhgen.mocap.retarget import Retargeter, RetargetMap
 
 AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
         "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
@@ -460,12 +460,9 @@ def map_to_yaml(rmap: RetargetMap, motion_source: str | None = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def explain_table(motion: Motion, rmap: RetargetMap, rt: object) -> str:
+def explain_table(motion: Motion, rmap: RetargetMap, rt: Retargeter) -> str:
     """Human-readable mapping of one file: a header (dialect or auto, confidence, up axis,
     reference frame, units, reference-pose error, notes) and one row per source joint."""
-    from vhgen.mocap.retarget import Retargeter
-
-    assert isinstance(rt, Retargeter)
     how = "automatic" if rmap.confidence is not None else f"map {rmap.name!r}"
     conf = 1.0 if rmap.confidence is None else rmap.confidence
     ref = "rest (OFFSETs)" if rmap.reference_frame is None else f"frame {rmap.reference_frame}"

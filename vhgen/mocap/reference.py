@@ -35,7 +35,7 @@ from vhgen.mocap.retarget import (
     reference_error,
     up_rotation,
 )
-from vhgen.mocap.units import detect_units
+from vhgen.mocap.units import estimate_units
 from vhgen.rotations import min_rotation
 
 _UP_BONES = ("Spine1", "Neck", "Spine", "LowerBack", "Neck1", "Head")
@@ -174,7 +174,7 @@ def bind_framed(motion: Motion, rig: Rig, rmap: RetargetMap, source_index: np.nd
                             "translation")
     units_m, detected = rmap.units_m, False
     if units_m is None:
-        _, units_m = detect_units(float(pts_a[:, 1].max() - pts_a[:, 1].min()))
+        _, units_m = estimate_units(float(pts_a[:, 1].max() - pts_a[:, 1].min()))
         detected = True
 
     source_ref = s_ref.copy()
