@@ -242,9 +242,11 @@ def auto_map(motion: Motion) -> RetargetMap:
     pelvis = sk.lca(fl, fr)
     named_pelvis = _pick(sk, "pelvis", None)
     chest = sk.lca(hl, hr)
+    pelvis_why = "pelvis: where the leg chains meet"
     if named_pelvis is not None and sk.is_anc(named_pelvis, pelvis) and \
             sk.is_anc(named_pelvis, chest):
         pelvis = named_pelvis
+        pelvis_why = "pelvis: name, above where the leg chains meet"
     problems = []
     if not (chest == pelvis or sk.is_anc(pelvis, chest)):
         problems.append(f"the arms ({motion.names[hl]!r}, {motion.names[hr]!r}) do not hang "
@@ -260,7 +262,7 @@ def auto_map(motion: Motion) -> RetargetMap:
     mapping: dict[int, str] = {pelvis: "Hips", head: "Head"}
     evidence: dict[int, float] = {pelvis: info[pelvis].parts.get("pelvis", 0.0),
                                   head: info[head].parts.get("head", 0.0)}
-    why: dict[int, str] = {pelvis: "pelvis: where the leg chains meet",
+    why: dict[int, str] = {pelvis: pelvis_why,
                            head: "head: end of the spine chain"}
     side_of: dict[int, str] = {}
     hip_split = sk.lca(fl, fr)  # the pelvis, or a spine joint below a named pelvis (Biped)
