@@ -238,7 +238,8 @@ def auto_map(motion: Motion) -> RetargetMap:
             f"{motion.names[0]!r}): no {', '.join(missing)} found ({_recognised(sk)}); "
             "refusing rather than leaving limbs at rest. Map it by hand: a retarget-map "
             "YAML passed with --map.")
-    fl, fr, hl, hr, head = (int(key[k]) for k in ("footL", "footR", "handL", "handR", "head"))
+    fl, fr, hl, hr, head = (int(key[k] or 0) for k in ("footL", "footR", "handL", "handR",
+                                                         "head"))  # none is None here
     pelvis = sk.lca(fl, fr)
     named_pelvis = _pick(sk, "pelvis", None)
     chest = sk.lca(hl, hr)
@@ -384,9 +385,9 @@ def auto_map(motion: Motion) -> RetargetMap:
     joints: dict[str, str | None] = {}
     reasons: dict[str, str] = {}
     for j, name in enumerate(motion.names):
-        t = mapping.get(j)
-        joints[name] = t
-        if t is not None:
+        tj = mapping.get(j)
+        joints[name] = tj
+        if tj is not None:
             reasons[name] = why[j]
         else:
             reasons[name] = _unmapped_reason(sk, j, mapping)

@@ -83,7 +83,7 @@ def _body_frame(left: np.ndarray, up: np.ndarray) -> np.ndarray | None:
     u = up / nu
     lft = left - (left @ u) * u
     nl = np.linalg.norm(lft)
-    if nl < 1e-9 * max(1.0, np.linalg.norm(left)):
+    if nl < 1e-9 * max(1.0, float(np.linalg.norm(left))):
         return None
     lft = lft / nl
     return np.stack([lft, u, np.cross(lft, u)], axis=1)

@@ -83,7 +83,7 @@ class RetargetMap:
                     np.linalg.norm(arr) == 0:
                 raise ConfigError(path, f"reference_directions.{k}",
                                   f"must be a non-zero [x, y, z], got {v!r}")
-            refs[k] = tuple(float(x) for x in arr)
+            refs[k] = (float(arr[0]), float(arr[1]), float(arr[2]))
         up = str(d.get("up", "+y"))
         if up not in UP_ROTATIONS:
             raise ConfigError(path, "up", f"must be one of {', '.join(UP_ROTATIONS)}, "
@@ -275,8 +275,9 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
     # root height above the lowest joint in the reference pose, both skeletons
     src_world = np.empty((motion.num_joints, 3, 3))
     for j, par in enumerate(motion.parents):
-        k = np.flatnonzero(source_index == j)
-        src_world[j] = source_ref[k[0]] if len(k) else (src_world[par] if par >= 0 else np.eye(3))
+        ks = np.flatnonzero(source_index == j)
+        src_world[j] = source_ref[ks[0]] if len(ks) else (src_world[par] if par >= 0 else
+                                                           np.eye(3))
     src_pos = np.empty((motion.num_joints, 3))
     for j, par in enumerate(motion.parents):
         src_pos[j] = 0.0 if par < 0 else src_pos[par] + src_world[par] @ motion.offsets[j]
