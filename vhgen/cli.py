@@ -47,6 +47,9 @@ def _cmd_corpus_build(args) -> int:
             raise ConfigError(None, "--map", f"{p} does not exist")
         RetargetMap.load(args.map)  # fail early, one line naming the field
     if args.explain is not None:
+        if args.inputs:
+            raise ConfigError(None, "--explain", "takes one BVH file and no other inputs "
+                                                 f"(got {' '.join(args.inputs)})")
         return _explain(args)
     if not args.inputs:
         raise ConfigError(None, "inputs", "give at least one BVH file or folder "

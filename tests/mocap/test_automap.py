@@ -285,6 +285,7 @@ def test_corpus_report_and_map_flag(tmp_path, capsys):
     (["x.bvh", "-o", "p.parquet", "--map", "/nonexistent.yaml"], "--map"),
     (["--explain", str(DIALECTS / "jumping.bvh"), "-o", "m.parquet"], "--output"),
     ([], "inputs"),
+    (["a.bvh", "--explain", str(DIALECTS / "jumping.bvh")], "--explain"),
 ])
 def test_bad_flags_one_line(capsys, argv, field):
     assert main(["corpus", "build", *argv]) == 2
@@ -330,3 +331,12 @@ def test_scene_config_takes_a_written_map_relative_to_itself(tmp_path, body):
     cfg_path.write_text(text.replace("retarget: auto", "retarget: maps/missing.yaml"))
     with pytest.raises(ConfigError, match="retarget: map file .*missing.yaml does not exist"):
         JobConfig.load(cfg_path)
+
+
+def test_explain_refuses_a_toy_in_one_line(tmp_path, capsys):
+    toy = tmp_path / "toy.bvh"
+    toy.write_text(TOY)
+    assert main(["corpus", "build", "--explain", str(toy), "-o", str(tmp_path / "t.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "toy.bvh: not a complete humanoid" in err[0]
+    assert "no left foot" in err[0] and not (tmp_path / "t.yaml").exists()

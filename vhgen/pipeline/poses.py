@@ -19,7 +19,13 @@ from vhgen.config import BUILTIN_MOTION, PosesConfig
 from vhgen.errors import ConfigError, VhgenError
 from vhgen.mocap.bvh import read_bvh
 from vhgen.mocap.posetable import read_pose_table
-from vhgen.mocap.retarget import RetargetMap, build_retargeter, detect_dialect, world_rotations
+from vhgen.mocap.retarget import (
+    RetargetMap,
+    build_retargeter,
+    detect_dialect,
+    mapping_report,
+    world_rotations,
+)
 
 log = logging.getLogger(__name__)
 
@@ -132,6 +138,7 @@ def load_poses(specs, rig: Rig, rmap: RetargetMap | list[RetargetMap],
             m = detect_dialect(motion, rmap) if isinstance(rmap, list) else rmap
             entry["dialect"] = m.name
             rt = build_retargeter(motion, rig, m)
+            entry.update(mapping_report(m, rt))
             r_all, p_all = rt.apply(motion)
         except VhgenError as e:
             entry.update(status="skipped", error=str(e))
