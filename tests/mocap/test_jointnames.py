@@ -27,6 +27,9 @@ def _best(name):
     ("LeftForeArmRoll", "L", "twist"), ("HeadTop_End", None, "end"),
     ("LeftInHandIndex", "L", "finger"), ("lMid1", "L", "finger"), ("leftEye", "L", "other"),
     ("Character1_LeftHand", "L", "hand"), ("WristLeft", "L", "hand"),
+    ("leftcollar", "L", "clavicle"), ("LEFTUPLEG", "L", "thigh"), ("hipright", "R", "thigh"),
+    ("L_THIGH", "L", "thigh"), ("rtoes", "R", "toe"), ("lowerback", None, "spine"),
+    ("Root", None, "other"), ("rib", None, "other"), ("leg", None, "shin"),
 ])
 def test_names_across_conventions(name, side, part):
     assert _best(name) == (side, part)

@@ -102,6 +102,17 @@ def tokenize(name: str) -> list[str]:
     return toks
 
 
+def _unglue(word: str) -> tuple[str | None, str]:
+    """('L'|'R'|None, rest) for a word with a glued side prefix or suffix whose rest is a
+    known sided part (the longest side spelling first)."""
+    for spell, side in (("left", "L"), ("right", "R"), ("l", "L"), ("r", "R")):
+        if word.startswith(spell) and word[len(spell):] in _SIDED:
+            return side, word[len(spell):]
+        if len(spell) > 1 and word.endswith(spell) and word[:-len(spell)] in _SIDED:
+            return side, word[:-len(spell)]
+    return None, word
+
+
 def classify(name: str) -> NameInfo:
     """Side, base name and part evidence of one joint name."""
     toks = tokenize(name)
@@ -118,11 +129,9 @@ def classify(name: str) -> NameInfo:
     elif len(words) > 1 and len(core) > 1 and core[-2] in _LEFT | _RIGHT and core[-1].isdigit():
         side = "L" if core[-2] in _LEFT else "R"
         core = core[:-2] + core[-1:]
-    if side is None and len(words) == 1 and core and core[0][:1] in ("l", "r") and \
-            core[0][1:] in _SIDED:
-        # ASF/AMC-style lower-case names: lfemur, rhumerus, lhipjoint
-        side = "L" if core[0][0] == "l" else "R"
-        core = [core[0][1:]] + core[1:]
+    if side is None and len(words) == 1 and core:
+        # glued lower- or upper-case names: lfemur, rhumerus (ASF), leftupleg, HIPLEFT
+        side, core[0] = _unglue(core[0])
     index = None
     while core and core[-1].isdigit():
         index = int(core[-1]) if index is None else index
