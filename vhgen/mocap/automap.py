@@ -265,7 +265,6 @@ def auto_map(motion: Motion) -> RetargetMap:
                                   head: info[head].parts.get("head", 0.0)}
     why: dict[int, str] = {pelvis: pelvis_why,
                            head: "head: end of the spine chain"}
-    side_of: dict[int, str] = {}
     hip_split = sk.lca(fl, fr)  # the pelvis, or a spine joint below a named pelvis (Biped)
     for side, foot, hand in (("L", fl, hl), ("R", fr, hr)):
         leg = sk.path(hip_split, foot)
@@ -286,7 +285,6 @@ def auto_map(motion: Motion) -> RetargetMap:
         ev.update(ev_a)
         for j, part in got.items():
             mapping[j] = PART_BONES[(part, side)]
-            side_of[j] = side
             evidence[j] = ev[j]
             limb = "leg" if part in ("thigh", "shin", "hipjoint") else "arm"
             why[j] = (f"{part}: name {motion.names[j]!r}" if ev[j] >= 0.5 else

@@ -66,7 +66,7 @@ _SIDED: dict[str, dict[str, float]] = {
     "uleg": {"thigh": 1.0},
     "forearm": {"forearm": 1.0}, "lowerarm": {"forearm": 1.0}, "elbow": {"forearm": 1.0},
     "armlower": {"forearm": 1.0}, "radius": {"forearm": 0.9},
-    "hand": {"hand": 0.95}, "wrist": {"hand": 1.0},
+    "hand": {"hand": 0.95}, "wrist": {"hand": 1.0}, "palm": {"hand": 0.9},
     "eye": {}, "ear": {}, "breast": {},
 }
 
