@@ -59,11 +59,11 @@ def icl_style_window(disp: np.ndarray, dots: np.ndarray, invalid: float = 0.0,
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
-    from vhgen.pipeline.poses import builtin_motion_path
+    from vhgen.bench.scenes import human_frame, suite
+    from vhgen.mocap.clips import builtin_motion_path
     from vhgen.render.context import create_context
     from vhgen.sensor.kernels import correlation_window, dots_from_pattern
     from vhgen.sensor.model import PATTERN_PAD, SensorConfig, SensorModel
-    from vhgen.sensor.scenes import human_frame, suite
     from vhgen.yamlio import configs_dir
 
     ap = argparse.ArgumentParser()

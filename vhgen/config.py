@@ -12,10 +12,9 @@ from typing import Any
 
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
-from vhgen.sensor.model import SensorConfig
+from vhgen.mocap.clips import BUILTIN_MOTION
+from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, load_yaml
-
-BUILTIN_MOTION = "builtin:demo"
 
 
 def _num(d: dict, key: str, src, prefix: str, *, lo=None, hi=None, integer=False,

@@ -63,7 +63,7 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         draw.text((4, y + 2), f"frame {f}: depth (mm)", fill=(0, 0, 0), font=font)
         draw.text((tw + 4, y + 2), f"frame {f}: labels", fill=(0, 0, 0), font=font)
         for c, tile in enumerate(tiles):
-            img = Image.fromarray(tile).resize((tw, th), Image.NEAREST)
+            img = Image.fromarray(tile).resize((tw, th), Image.Resampling.NEAREST)
             sheet.paste(img, (c * tw, y + 14))
     x0 = cols * tw + 8
     draw.text((x0, 4), "labels (subject's L/R)", fill=(0, 0, 0), font=font)

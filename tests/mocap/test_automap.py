@@ -15,13 +15,13 @@ from vhgen.cli import main
 from vhgen.errors import RetargetError
 from vhgen.mocap.automap import auto_map
 from vhgen.mocap.bvh import parse_bvh, read_bvh
+from vhgen.mocap.clips import ground_offset
 from vhgen.mocap.retarget import (
     RetargetMap,
     build_retargeter,
     detect_dialect,
     load_all_maps,
 )
-from vhgen.pipeline.poses import ground_offset
 
 MOCAP = Path(__file__).resolve().parents[2].parent / "shared" / "mocap"
 FILES = sorted(str(p.relative_to(MOCAP)) for p in MOCAP.rglob("*.bvh")) if MOCAP.is_dir() else []

@@ -107,8 +107,8 @@ def test_corpus_cli_skips_bad_files_and_reports(tmp_path, shared_mocap, capsys):
     assert rc == 0
     report = json.loads(rep.read_text())
     by = {f["file"].split("/")[-1]: f for f in report["files"]}
-    assert by["broken.bvh"]["status"] == "error" and "343 data rows" in by["broken.bvh"]["error"]
-    assert by["garbage.BVH"]["status"] == "error" and "binary" in by["garbage.BVH"]["error"]
+    assert by["broken.bvh"]["status"] == "skipped" and "343 data rows" in by["broken.bvh"]["error"]
+    assert by["garbage.BVH"]["status"] == "skipped" and "binary" in by["garbage.BVH"]["error"]
     assert by["10_01.bvh"]["dialect"] == "bvh19" and by["10_01.bvh"]["poses_kept"] > 0
     table = read_pose_table(out)
     assert table.num_poses == sum(f["poses_kept"] for f in report["files"])

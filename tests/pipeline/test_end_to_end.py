@@ -66,6 +66,15 @@ def test_contract(smoke, shared_mocap):
     names = g.attrs["label_names"]
     assert len(names) == 31 and names[0] == "LU_head"
     assert len(g.attrs["label_colors"]) == 32
+    # the motions attribute uses the one clip report format (same as corpus build)
+    motions = {m["file"].split("/")[-1]: m for m in g.attrs["motions"]}
+    assert list(motions["02_01.bvh"]) == ["file", "status", "frames", "poses_read",
+                                          "poses_kept", "dialect", "units_m", "error",
+                                          "mapping", "confidence", "up", "reference_frame",
+                                          "ref_error_deg", "ref_error_bone", "notes"]
+    assert motions["02_01.bvh"]["mapping"] == "map" and motions["02_01.bvh"]["confidence"] == 1
+    assert motions["broken.bvh"]["status"] == "skipped"
+    assert sum(m["poses_kept"] for m in motions.values()) == summary["poses"]
     d = depth[:]
     lab = labels[:]
     for f in range(10):

@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from vhgen.sensor.effects import AxialNoise, SensorState
+from vhgen.sensor.effects import AxialNoise
 from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.stages import AxialNoiseStage
+from vhgen.sensor.state import SensorState
 from vhgen.yamlio import configs_dir
 
 F, B = 571.26, 0.075
@@ -115,9 +117,9 @@ def test_barron_malik_bias_removed():
     """The published ICL code biases depth nearer by ~z^2/(2*35130) cm; ours is unbiased
     to within the 1 cm input rounding."""
     z0 = 3.0
-    intr = SensorConfig.load("ideal").intrinsics
-    s = SensorState(intr, B, _plane(z0, 480, 640), np.ones((480, 640), bool))
-    AxialNoise(model="barron_malik").apply(s, np.random.default_rng(0))
+    ideal = SensorConfig.load("ideal")
+    s = SensorState(ideal.intrinsics, B, _plane(z0, 480, 640), np.ones((480, 640), bool))
+    AxialNoiseStage(AxialNoise(model="barron_malik"), ideal).apply(s, np.random.default_rng(0))
     ours = s.z[s.valid].mean()
     rng = np.random.default_rng(0)
     icl = (35130 / np.round(35130 / np.round(z0 * 100) + rng.standard_normal(480 * 640) / 6

@@ -1,12 +1,10 @@
-"""The structured-light reference and `vhgen bench fidelity`."""
-
-import json
+"""The structured-light reference path on exact analytic scenes."""
 
 import numpy as np
 import pytest
 
+from vhgen.bench.scenes import analytic_frame
 from vhgen.sensor.model import SensorConfig, SensorModel
-from vhgen.sensor.scenes import analytic_frame, suite
 
 F, B = 571.26, 0.075
 
@@ -20,7 +18,7 @@ def _ref(tmp_path, noise: bool) -> SensorModel:
 
 
 def test_reference_recovers_plane_disparity_to_the_eighth_pixel(tmp_path):
-    from vhgen.sensor.scenes import Rect
+    from vhgen.bench.scenes import Rect
 
     m = _ref(tmp_path, noise=False)
     intr = m.cfg.intrinsics
@@ -37,7 +35,7 @@ def test_reference_recovers_plane_disparity_to_the_eighth_pixel(tmp_path):
 
 
 def test_reference_shadows_and_noise(tmp_path):
-    from vhgen.sensor.scenes import Rect
+    from vhgen.bench.scenes import Rect
 
     m = _ref(tmp_path, noise=True)
     intr = m.cfg.intrinsics
@@ -53,42 +51,10 @@ def test_reference_shadows_and_noise(tmp_path):
         m.simulate(fr.depth, np.random.default_rng(0), normals=fr.normals)
 
 
-def test_bench_fidelity_quick(tmp_path):
-    from vhgen.sensor.fidelity import bench_fidelity
-
-    res = bench_fidelity(tmp_path, quick=True, human=False,
-                         configs=("ideal", "kinect_v1_full"))
-    data = json.loads((tmp_path / "fidelity.json").read_text())
-    assert (tmp_path / "fidelity.png").stat().st_size > 10_000
-    assert "kinect_v1_full" in (tmp_path / "table.txt").read_text()
-    ideal = data["configs"]["ideal"]["summary"]
-    full = data["configs"]["kinect_v1_full"]["summary"]
-    ref = data["configs"][data["reference"]]["summary"]
-    assert ref["valid_iou"] == 1.0 and ref["rms_raw"] == 0.0
-    # the full model casts shadows and loses thin rods like the reference; ideal does not
-    assert full["shadow_width_error_px"] < ideal["shadow_width_error_px"]
-    assert full["rod_recall"]["2"] < 0.5 <= ideal["rod_recall"]["2"]
-    assert full["ms_per_frame"] > ideal["ms_per_frame"]
-    assert full["hole_iou"] > ideal["hole_iou"]
-    assert res["table"].splitlines()[0].startswith("fidelity against")
-
-
-def test_analytic_scenes_are_exact():
-    intr = SensorConfig.load("ideal").intrinsics
-    frames = suite(intr, B, quick=True)
-    plane = next(f for f in frames if f.kind == "plane")
-    np.testing.assert_allclose(plane.depth, 2.0)
-    step = next(f for f in frames if f.kind == "step")
-    assert step.depth[100, 400] == pytest.approx(1.0) and step.depth[100, 100] == 3.0
-    # the projector at +b sees the foreground edge shifted left by f b / z
-    cols = np.flatnonzero(step.projector_depth[100] < 2.0)
-    assert abs(cols[0] - (intr.cx - F * B / 1.0)) <= 1
-
-
 def test_reference_near_field_beyond_search_range_is_invalid(tmp_path):
     """At 0.5 m the disparity (85.7 px) lies past the 64 px search window: no measurement,
     as on the device ("too near"), and no NaN."""
-    from vhgen.sensor.scenes import Rect
+    from vhgen.bench.scenes import Rect
 
     m = _ref(tmp_path, noise=False)
     fr = analytic_frame("near", "plane", m.cfg.intrinsics, B, [Rect(0.5)])

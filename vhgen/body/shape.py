@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vhgen.assets import vhgen_home
 from vhgen.errors import AssetError, ConfigError
 
 log = logging.getLogger(__name__)
@@ -149,8 +150,6 @@ class MacroTargets:
     """
 
     def __init__(self, asset_dir: Path, cache_dir: Path | None = None):
-        from vhgen.assets import vhgen_home
-
         self.root = Path(asset_dir) / "targets" / "macrodetails"
         files = sorted(self.root.rglob("*.target.gz"))
         if not files:
@@ -175,7 +174,7 @@ class MacroTargets:
             arrays[name + ".d"] = a[:, 1:].astype(np.float32)
         self.cache.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.cache.with_name(f"{self.cache.stem}.{os.getpid()}.tmp.npz")
-        np.savez(tmp, **arrays)
+        np.savez(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub: kwargs vs allow_pickle
         os.replace(tmp, self.cache)
         log.info("cached %d macro targets in %s", len(files), self.cache)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.mesh import Rig
+from vhgen.rotations import matrix_to_quaternion
 
 
 def posed_heads(rig: Rig, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
@@ -65,8 +66,6 @@ def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def dual_quaternions(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rigid (..., 4, 4) transforms -> unit dual quaternions: real (..., 4), dual (..., 4),
     (x, y, z, w) order, real part with w >= 0, dual = 0.5 * t * real."""
-    from vhgen.rotations import matrix_to_quaternion
-
     m = np.asarray(matrices, np.float64)
     real = matrix_to_quaternion(m[..., :3, :3])
     t = np.concatenate([m[..., :3, 3], np.zeros(m.shape[:-2] + (1,))], axis=-1)

@@ -34,7 +34,7 @@ import numpy as np
 from vhgen.errors import RetargetError
 from vhgen.mocap.bvh import Motion
 from vhgen.mocap.jointnames import ESSENTIAL, PART_BONES, NameInfo, classify
-from vhgen.mocap.retarget import Retargeter, RetargetMap
+from vhgen.mocap.retargetmap import Retargeter, RetargetMap
 
 AXES = {"+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0), "+y": (0.0, 1.0, 0.0),
         "-y": (0.0, -1.0, 0.0), "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0)}
@@ -492,11 +492,12 @@ def report_table(entries: list[dict]) -> str:
              "note / error")]
     for e in entries:
         note = e.get("error") or "; ".join(e.get("notes", []))
+        conf, err = e.get("confidence"), e.get("ref_error_deg")
         rows.append((Path(e["file"]).name, e["status"], e.get("dialect") or "-",
-                     f"{e['confidence']:.2f}" if "confidence" in e else "-", e.get("up", "-"),
+                     "-" if conf is None else f"{conf:.2f}", e.get("up") or "-",
                      str(e.get("frames", 0)), str(e.get("poses_kept", 0)),
-                     f"{e['ref_error_deg']:.1f} ({e.get('ref_error_bone', '')})"
-                     if "ref_error_deg" in e else "-", note[:90]))
+                     "-" if err is None else f"{err:.1f} ({e.get('ref_error_bone', '')})",
+                     note[:90]))
     widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]) - 1)]
     return "\n".join("  ".join(f"{r[c]:{widths[c]}}" for c in range(len(widths))) + "  " + r[-1]
                      for r in rows)

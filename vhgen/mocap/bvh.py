@@ -305,9 +305,9 @@ def _parse_rows(rows: list[str], nchan: int, num_frames: int, first_line: int,
             raise cur.error(first_line, "no complete data row")
         flat = np.concatenate(flat_rows)
     data = flat.reshape(-1, nchan)
-    bad = ~np.isfinite(data)
-    if bad.any():
-        r, c = np.argwhere(bad)[0]
+    nonfinite = ~np.isfinite(data)
+    if nonfinite.any():
+        r, c = np.argwhere(nonfinite)[0]
         raise cur.error(first_line + int(r), f"non-finite value in column {int(c) + 1}")
     return data
 

@@ -1,7 +1,8 @@
 """Building a pose corpus: many BVH files in parallel -> retarget -> sparsify -> Parquet.
 
-A file that fails (grammar, unknown skeleton, NaN...) is reported with its error text and
-skipped; the rest of the corpus goes on.
+Files are read by :func:`vhgen.mocap.clips.load_clip`; one that fails (grammar, unknown
+skeleton, NaN...) is reported (status ``skipped``, with its error text) and the rest of the
+corpus goes on.
 """
 
 from __future__ import annotations
@@ -12,10 +13,18 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from vhgen.assets import resolve_asset_dir
+from vhgen.body.mesh import Rig, load_base_mesh, load_rig
+from vhgen.body.skinning import posed_heads
 from vhgen.errors import VhgenError
+from vhgen.mocap.clips import Clip, ClipFailure, expand_motion_paths, load_clip
+from vhgen.mocap.posetable import PoseTable, write_pose_table
+from vhgen.mocap.retarget import RetargetMap, load_all_maps, local_rotations, world_rotations
+from vhgen.mocap.sparsify import remove_heading, sparsify
 
 log = logging.getLogger(__name__)
 
@@ -41,54 +50,32 @@ class SparsifySettings:
                 "allow_truncated": self.allow_truncated}
 
 
-_WORKER: dict = {}
+_WORKER: dict[str, Any] = {}
+
+
+def _load_rig(asset_dir: str) -> Rig:
+    base = load_base_mesh(Path(asset_dir))
+    return load_rig(Path(asset_dir), base.vertices, base.vertex_groups)
 
 
 def _init_worker(asset_dir: str, map_dir: str | None, units_m: float | None,
                  map_file: str | None = None) -> None:
-    from vhgen.body.mesh import load_base_mesh, load_rig
-    from vhgen.mocap.retarget import RetargetMap, load_all_maps
-
-    base = load_base_mesh(Path(asset_dir))
-    _WORKER["rig"] = load_rig(Path(asset_dir), base.vertices, base.vertex_groups)
+    _WORKER["rig"] = _load_rig(asset_dir)
     # one map for every file (--map), or the shipped maps with automatic mapping
     _WORKER["maps"] = RetargetMap.load(map_file) if map_file else load_all_maps(map_dir)
     _WORKER["units_m"] = units_m
 
 
-def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool = False) -> dict:
-    """Read, detect, retarget, ground one file; never raises for bad input."""
-    from vhgen.mocap.bvh import read_bvh
-    from vhgen.mocap.retarget import (
-        build_retargeter,
-        detect_dialect,
-        local_rotations,
-        mapping_report,
-    )
-    from vhgen.pipeline.poses import ground_offset
-
-    entry = {"file": name, "status": "ok", "frames": 0, "poses_read": 0, "poses_kept": 0,
-             "dialect": "", "units_m": None, "error": ""}
-    try:
-        motion = read_bvh(path, allow_truncated=allow_truncated)
-        entry["frames"] = motion.num_frames
-        maps = _WORKER["maps"]
-        rmap = detect_dialect(motion, maps) if isinstance(maps, list) else maps
-        entry["dialect"] = rmap.name
-        rig = _WORKER["rig"]
-        rt = build_retargeter(motion, rig, rmap)
-        entry.update(mapping_report(rmap, rt))
-        rot, root = rt.apply(motion)
-        root = root.copy()
-        root[:, 1] += ground_offset(rig, rot, root)
-        sel = np.arange(0, motion.num_frames, frame_step)
-        entry["units_m"] = _WORKER["units_m"] or rt.units_m
-        entry["poses_read"] = int(len(sel))
-        return {"entry": entry, "local": local_rotations(rig, rot[sel]), "root": root[sel],
-                "frames": sel.astype(np.int32)}
-    except VhgenError as e:
-        entry.update(status="error", error=str(e))
-        return {"entry": entry}
+def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool = False
+                  ) -> tuple[Clip | ClipFailure, np.ndarray | None]:
+    """One file through the clip loader, plus its local rotations (P, B, 3, 3) if usable;
+    never raises for bad input."""
+    rig = _WORKER["rig"]
+    clip = load_clip(name, path, rig, _WORKER["maps"], frame_step=frame_step,
+                     allow_truncated=allow_truncated, units_m=_WORKER["units_m"])
+    if isinstance(clip, ClipFailure):
+        return clip, None
+    return clip, local_rotations(rig, clip.rotations)
 
 
 def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettings,
@@ -101,12 +88,6 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
     Returns a summary; raises VhgenError if no pose is usable (or, with ``strict``, if any
     file failed), after writing the report.
     """
-    from vhgen.assets import resolve_asset_dir
-    from vhgen.mocap.posetable import PoseTable, write_pose_table
-    from vhgen.mocap.retarget import world_rotations
-    from vhgen.mocap.sparsify import remove_heading, sparsify
-    from vhgen.pipeline.poses import expand_motion_paths
-
     asset_dir = resolve_asset_dir(asset_dir)
     files = expand_motion_paths(list(inputs))
     workers = workers or os.cpu_count() or 1
@@ -123,20 +104,18 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
         results = [_process_file(n, str(p), settings.frame_step, settings.allow_truncated)
                    for n, p in files]
     rig = _WORKER.get("rig")
-    if rig is None:
-        from vhgen.body.mesh import load_base_mesh, load_rig
-
-        base = load_base_mesh(Path(asset_dir))
-        rig = load_rig(Path(asset_dir), base.vertices, base.vertex_groups)
-    entries = [r["entry"] for r in results]
-    good = [r for r in results if r["entry"]["status"] == "ok"]
-    summary = {"files": len(entries), "ok": len(good),
-               "failed": [e for e in entries if e["status"] != "ok"]}
+    if rig is None:  # the files were read in worker processes
+        rig = _load_rig(str(asset_dir))
+    entries = [c.report for c, _ in results]
+    good = [(c, loc) for c, loc in results if isinstance(c, Clip) and loc is not None]
+    summary: dict[str, Any] = {"files": len(entries), "ok": len(good),
+                               "failed": [e.to_dict() for e in entries if e.status != "ok"]}
     if good:
-        local = np.concatenate([r["local"] for r in good])
-        root = np.concatenate([r["root"] for r in good])
-        owner = np.concatenate([np.full(len(r["frames"]), k) for k, r in enumerate(good)])
-        frames = np.concatenate([r["frames"] for r in good])
+        local = np.concatenate([loc for _, loc in good])
+        root = np.concatenate([c.roots for c, _ in good])
+        owner = np.concatenate([np.full(len(c.source_frames), k)
+                                for k, (c, _) in enumerate(good)])
+        frames = np.concatenate([c.source_frames for c, _ in good])
         keep_bones = [k for k, b in enumerate(rig.names) if b not in settings.exclude]
         if settings.metric == "angle":
             feats = local.copy()
@@ -145,8 +124,6 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
                 feats[:, root_idx] = remove_heading(feats[:, root_idx])
             kept = sparsify(feats[:, keep_bones], np.deg2rad(settings.min_angle_deg), "angle")
         else:
-            from vhgen.body.skinning import posed_heads
-
             world = world_rotations(rig, local)
             if not settings.keep_heading:
                 root_idx = int(np.flatnonzero(rig.parents < 0)[0])
@@ -156,19 +133,20 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
             pos = posed_heads(rig, world, np.zeros((len(world), 3)))
             kept = sparsify(pos[:, keep_bones], settings.min_distance_m, "position")
         counts = np.bincount(owner[kept], minlength=len(good))
-        for r, c in zip(good, counts, strict=True):
-            r["entry"]["poses_kept"] = int(c)
+        for (c, _), n in zip(good, counts, strict=True):
+            c.report.poses_kept = int(n)
         table = PoseTable(
-            source_file=[good[o]["entry"]["file"] for o in owner[kept]],
-            source_frame=frames[kept], dialect=[good[o]["entry"]["dialect"] for o in owner[kept]],
-            units_m=np.array([good[o]["entry"]["units_m"] for o in owner[kept]], np.float64),
+            source_file=[good[o][0].report.file for o in owner[kept]],
+            source_frame=frames[kept], dialect=[good[o][0].report.dialect for o in owner[kept]],
+            units_m=np.array([good[o][0].report.units_m for o in owner[kept]], np.float64),
             root_translation=root[kept], local_rotations=local[kept], rig="cmu_mb",
             bones=list(rig.names), settings=settings.to_dict())
         summary.update(poses_read=int(len(local)), poses_kept=int(len(kept)))
     if report is not None:
         Path(report).parent.mkdir(parents=True, exist_ok=True)
         with open(report, "w") as f:
-            json.dump({"settings": settings.to_dict(), "files": entries}, f, indent=1)
+            json.dump({"settings": settings.to_dict(), "files": [e.to_dict() for e in entries]},
+                      f, indent=1)
     if not good:
         raise VhgenError(f"no usable motion among {len(entries)} file(s); see the report")
     if strict and summary["failed"]:

@@ -29,7 +29,7 @@ from vhgen.errors import RetargetError
 from vhgen.mocap.automap import joint_tree
 from vhgen.mocap.bvh import Motion
 from vhgen.mocap.jointnames import classify
-from vhgen.mocap.retarget import (
+from vhgen.mocap.retargetmap import (
     Retargeter,
     RetargetMap,
     reference_error,

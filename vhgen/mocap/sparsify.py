@@ -27,6 +27,7 @@ frames mostly reject each other inside a batch, so few lookups are needed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -154,7 +155,7 @@ class _Forest:
     """Kept poses' embeddings in static KD-trees of geometrically growing sizes."""
 
     def __init__(self):
-        self.levels: list[tuple[object, np.ndarray, np.ndarray]] = []  # (tree, pts, ids)
+        self.levels: list[tuple[Any, np.ndarray, np.ndarray]] = []  # (tree, pts, ids)
 
     def add(self, pts: np.ndarray, ids: np.ndarray) -> None:
         from scipy.spatial import cKDTree

@@ -13,6 +13,7 @@ import logging
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -120,8 +121,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         create_store(out, num_frames=plan.num_frames, height=intr.height, width=intr.width,
                      frames_per_shard=cfg.frames_per_shard,
                      compression_level=cfg.compression_level, attrs=attrs, overwrite=overwrite,
-                     raw11=bool(cfg.sensor.effect("encode") is not None
-                                and cfg.sensor.effect("encode").params["raw11"]))
+                     raw11=cfg.sensor.encoding.raw11)
     done = completed_shards(out)
     todo = [t for t in plan.tasks if t.shard not in done]
     log.info("%d frames in %d shards (%d to do), %d poses from %d motion files", plan.num_frames,
@@ -151,7 +151,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         renderers = sorted(set(ray.get([a.renderer.remote() for a in actors])))
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
-        pending = {}
+        pending: dict[Any, tuple[Any, Any]] = {}
         queue = list(todo)
         attempts = {t.shard: 0 for t in todo}
         results = []

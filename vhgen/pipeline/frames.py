@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,8 +63,6 @@ class FrameGenerator:
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
                                            normals="normals" in cfg.sensor.needs)
-        enc = cfg.sensor.effect("encode")
-        self.raw11 = bool(enc is not None and enc.params["raw11"])
         self._avatar: tuple[int, Body] | None = None
         # poses were retargeted onto the unshaped base body; an avatar's root height
         # scales with its hip height so its feet stay on the floor
@@ -81,8 +80,10 @@ class FrameGenerator:
             self._avatar = (avatar_id, body)
         return self._avatar[1]
 
-    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict]:
-        """depth (H, W) uint16 mm, labels (H, W) uint8, and the frame's manifest row."""
+    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any],
+                                                np.ndarray | None]:
+        """depth (H, W) uint16 mm, labels (H, W) uint8, the frame's manifest row, and the
+        raw 11-bit image (H, W) uint16 when the sensor's encoding keeps it (else None)."""
         avatar_id = int(self.plan["avatar_id"][frame])
         pose = int(self.plan["pose_index"][frame])
         seed = int(self.plan["seeds"][frame])
@@ -107,7 +108,9 @@ class FrameGenerator:
             proj, _ = self.renderer.render(w2p @ mats)
         out = self.sensor.simulate(depth_f, rng, labels=labels, normals=normals,
                                    projector_depth=proj)
-        depth_mm, labels, valid = out.depth_mm, out.labels, out.valid
+        depth_mm, valid = out.depth_mm, out.valid
+        if out.labels is not None:  # moved with the pixels by geometric effects
+            labels = out.labels
         heads = posed_heads(body.rig, rot, root)
         joints_cam = (heads @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
         mid = int(self.pose_meta["motion_id"][pose])
@@ -139,11 +142,13 @@ class FrameGenerator:
         h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
         depth = np.zeros((stop - start, h, w), np.uint16)
         labels = np.zeros((stop - start, h, w), np.uint8)
-        raw = np.zeros((stop - start, h, w), np.uint16) if self.raw11 else None
+        raw = None  # allocated if the sensor's encoding keeps raw11 (the model decides)
         rows = []
         for i, f in enumerate(range(start, stop)):
             depth[i], labels[i], row, r11 = self.render_frame(f)
-            if raw is not None:
+            if r11 is not None:
+                if raw is None:
+                    raw = np.zeros((stop - start, h, w), np.uint16)
                 raw[i] = r11
             row["shard"] = shard
             rows.append(row)

@@ -7,9 +7,11 @@ One draw call per pose fills one RG32F target (planar depth, part label).
 from __future__ import annotations
 
 from importlib import resources
+from typing import Any
 
 import numpy as np
 
+from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
 
@@ -17,7 +19,7 @@ LABEL_TEX_WIDTH = 4096
 
 
 SKINNING_MODES = ("lbs", "dqs")
-_PARKING: dict[int, object] = {}
+_PARKING: dict[int, Any] = {}
 
 
 def _park(ctx) -> None:
@@ -50,8 +52,6 @@ def write_bones(program, matrices: np.ndarray, mode: str) -> None:
     if mode == "lbs":
         program["bones"].write(np.ascontiguousarray(np.swapaxes(m, -1, -2), dtype="f4").tobytes())
     else:
-        from vhgen.body.skinning import dual_quaternions
-
         real, dual = dual_quaternions(m)
         program["dq_real"].write(np.ascontiguousarray(real, dtype="f4").tobytes())
         program["dq_dual"].write(np.ascontiguousarray(dual, dtype="f4").tobytes())
@@ -81,6 +81,7 @@ class DepthLabelRenderer:
         _defines(1, skinning)
         self.skinning = skinning
         self.want_normals = bool(normals)
+        self.normals: np.ndarray | None = None  # (H, W, 3) float32 after render()
         self.ctx = ctx
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
@@ -94,7 +95,7 @@ class DepthLabelRenderer:
         self.depth = ctx.depth_renderbuffer(size)
         self.fbo = ctx.framebuffer(color_attachments=attachments, depth_attachment=self.depth)
         self._out = np.empty((intr.height, intr.width, 2), dtype=np.float32)
-        self.program = None
+        self.program: Any = None
         self.num_bones = 0
         self._mesh: list = []
         self.vao = None

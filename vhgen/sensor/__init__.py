@@ -1,7 +1,7 @@
-"""Depth sensor models (NumPy and numba kernels; no GL, no Ray)."""
+"""Depth sensor models: effect specs (pure description, imported with ``vhgen``) and their
+runtime (:mod:`vhgen.sensor.model`, NumPy and numba kernels; no GL, no Ray)."""
 
-from vhgen.sensor.effects import EFFECTS, SensorState
-from vhgen.sensor.model import SensorConfig, SensorModel, SensorOutput, dot_pattern
+from vhgen.sensor.config import SensorConfig
+from vhgen.sensor.spec import EffectSpec, Encoding, effect_types
 
-__all__ = ["EFFECTS", "SensorConfig", "SensorModel", "SensorOutput", "SensorState",
-           "dot_pattern"]
+__all__ = ["EffectSpec", "Encoding", "SensorConfig", "effect_types"]

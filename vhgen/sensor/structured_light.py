@@ -3,7 +3,7 @@
 After Landau, Choo & Beling (2016), in the rectified rig (camera at the origin, projector
 at +b along x, same intrinsics):
 
-1. the projector's binary dot pattern (:func:`vhgen.sensor.model.dot_pattern`) lights
+1. the projector's binary dot pattern (:func:`vhgen.sensor.pattern.dot_pattern`) lights
    each surface point; a pixel u of depth z sees the pattern at projector column u - d,
    d = f b / z, as the pixel-area average of the binary dots (linear interpolation);
    points the projector cannot see (projector-view depth) stay dark;
@@ -26,7 +26,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from vhgen.sensor.effects import Effect, Param, exact_shadow
+from vhgen.sensor.effects import StructuredLight
+from vhgen.sensor.pattern import PATTERN_PAD
+from vhgen.sensor.stage import Stage
+from vhgen.sensor.stages import exact_shadow
+from vhgen.sensor.state import SensorState
 
 
 def _shifted(pattern: np.ndarray, shift: float, width: int, pad: int) -> np.ndarray:
@@ -106,35 +110,26 @@ def match(ir: np.ndarray, pattern: np.ndarray, pad: int, d_lo: int, search_px: i
     return np.where(ok, best_d + frac, 0.0), ok
 
 
-class StructuredLight(Effect):
+class StructuredLightStage(Stage[StructuredLight], spec=StructuredLight):
     """The structured-light reference path (see the module docstring)."""
 
-    NAME = "structured_light"
-    PARAMS = {"window": Param(9, 3, 31), "search_px": Param(64, 8, 256),
-              "d_min_px": Param(7.0, 0.0, 200.0), "min_zncc": Param(0.5, -1.0, 1.0),
-              "albedo": Param(1.0, 0.0, 1.0), "ir_noise": Param(True)}
-    NEEDS = frozenset({"projector_depth", "normals"})
-
-    @property
-    def random(self) -> bool:
-        return bool(self.params["ir_noise"])
-
-    def apply(self, s, rng):
-        from vhgen.sensor.effects import _incidence_cos
-        from vhgen.sensor.model import PATTERN_PAD
-
+    def apply(self, s: SensorState, rng: np.random.Generator | None) -> None:
+        p = self.spec
+        if s.pattern is None or s.ray_norm is None:
+            raise ValueError("structured_light needs the dot pattern and the viewing rays")
         z = s.to_depth()
         lit = ~exact_shadow(s, 0.01)
         ranges = z * s.ray_norm * 1000.0
-        cos = _incidence_cos(s) if s.normals is not None else np.ones_like(z)
+        cos = s.normals_cos() if s.normals is not None else np.ones_like(z)
+        if p.ir_noise and rng is None:
+            raise ValueError("structured_light with ir_noise draws noise: pass a Generator")
         ir = ir_image(z, s.valid, lit, s.pattern.astype(np.float64), PATTERN_PAD, s.fb,
-                      ranges, cos, self.params["albedo"], rng if self.params["ir_noise"]
-                      else None)
-        d, ok = match(ir, s.pattern, PATTERN_PAD, int(self.params["d_min_px"]),
-                      int(self.params["search_px"]), int(self.params["window"]),
-                      self.params["min_zncc"])
+                      ranges, cos, p.albedo, rng if p.ir_noise else None)
+        d, ok = match(ir, s.pattern, PATTERN_PAD, p.d_min_px, p.search_px, p.window,
+                      p.min_zncc)
         lost = s.valid & ~ok
-        s.holes["matching"] = s.holes.get("matching", np.zeros_like(ok)) | lost
+        s.holes["matching"] = s.hole("matching") | lost
         s.d = d
+        s.z = None
         s.valid = ok
         s.domain = "d"

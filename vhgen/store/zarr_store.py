@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 
@@ -60,7 +61,7 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
     (path / MANIFEST_PARTS).mkdir(exist_ok=True)
 
 
-def open_store(path: str | Path, mode: str = "r"):
+def open_store(path: str | Path, mode: Literal["r", "r+"] = "r") -> Any:
     import zarr
 
     path = Path(path)

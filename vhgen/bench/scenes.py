@@ -12,7 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.camera import Intrinsics, pixel_rays
+from vhgen.body.labels import LabelScheme
+from vhgen.body.model import build_body
+from vhgen.body.skinning import bone_matrices
+from vhgen.camera import Intrinsics, look_at, pixel_rays
+from vhgen.errors import RenderError
+from vhgen.mocap.bvh import read_bvh
+from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
+from vhgen.render.renderer import DepthLabelRenderer
 
 
 @dataclass(frozen=True)
@@ -97,26 +104,20 @@ def suite(intr: Intrinsics, baseline: float, quick: bool = False) -> list[Frame]
 def human_frame(ctx, intr: Intrinsics, baseline: float, asset_dir, motion_path,
                 frame: int = 100, distance: float = 2.5, wall: float | None = 3.5) -> Frame:
     """A posed MakeHuman body (GL) in front of an analytic wall (``wall=None``: alone)."""
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.body.skinning import bone_matrices
-    from vhgen.camera import look_at
-    from vhgen.mocap.bvh import read_bvh
-    from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
-    from vhgen.render.renderer import DepthLabelRenderer
-
     body = build_body(asset_dir, LabelScheme.load("shotton31"))
     motion = read_bvh(motion_path)
     rt = build_retargeter(motion, body.rig, detect_dialect(motion, load_all_maps()))
     rot, root = rt.apply(motion, frames=np.array([frame]))
     root = root[0] - np.array([root[0, 0], 0.0, root[0, 2]])
     mats = bone_matrices(body.rig, rot[0], root)
-    w2c = look_at([0, 1.0, distance], [0, 0.9, 0])
+    w2c = look_at(np.array([0, 1.0, distance]), np.array([0, 0.9, 0]))
     ren = DepthLabelRenderer(ctx, intr, normals=True)
     ren.set_mesh(body.vertices, body.faces, body.joints, body.weights, body.face_labels,
                  body.num_bones)
     d, lab = ren.render(w2c @ mats)
     nrm = ren.normals
+    if nrm is None:
+        raise RenderError("the renderer returned no normals")
     w2p = w2c.copy()
     w2p[0, 3] -= baseline
     pd, _ = ren.render(w2p @ mats)

@@ -14,11 +14,14 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from vhgen.assets import resolve_asset_dir
+from vhgen.bench.scenes import Frame, human_frame, suite
+from vhgen.mocap.clips import builtin_motion_path
 from vhgen.sensor.model import SensorConfig, SensorModel
-from vhgen.sensor.scenes import Frame
 
 DEFAULT_CONFIGS = ("ideal", "kinect_v1_fast", "kinect_v1_full", "kinect_v1_exact_shadows")
 REFERENCE = "kinect_v1_reference"
@@ -70,7 +73,8 @@ def evaluate(frames: list[Frame], configs=DEFAULT_CONFIGS, reference: str = REFE
     for m in models.values():  # compile numba kernels outside the timings
         m.simulate(frames[0].depth, np.random.default_rng(0), labels=frames[0].labels,
                    normals=frames[0].normals, projector_depth=frames[0].projector_depth)
-    results = {"reference": reference, "configs": {}, "scenes": [fr.name for fr in frames]}
+    results: dict[str, Any] = {"reference": reference, "configs": {},
+                               "scenes": [fr.name for fr in frames]}
     ref_out = {}
     ref_ms = []
     for k, fr in enumerate(frames):
@@ -191,15 +195,11 @@ def bench_fidelity(out_dir: str | Path, *, quick: bool = False, configs=DEFAULT_
                    human: bool = True, backend: str = "egl", motion: str | None = None,
                    asset_dir=None) -> dict:
     """Build the scene suite, evaluate, and write table.txt, fidelity.json, fidelity.png."""
-    from vhgen.sensor.scenes import human_frame, suite
-
     ref_cfg = SensorConfig.load(REFERENCE)
     intr, b = ref_cfg.intrinsics, ref_cfg.baseline_m
     frames = suite(intr, b, quick=quick)
     if human:
-        from vhgen.assets import resolve_asset_dir
-        from vhgen.pipeline.poses import builtin_motion_path
-        from vhgen.render.context import create_context
+        from vhgen.render.context import create_context  # GL only for the human scene
 
         ctx = create_context(backend)
         frames.append(human_frame(ctx, intr, b, resolve_asset_dir(asset_dir),

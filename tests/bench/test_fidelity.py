@@ -1,0 +1,43 @@
+"""`vhgen bench fidelity` and its analytic scene suite."""
+
+import json
+
+import numpy as np
+import pytest
+
+from vhgen.bench.scenes import suite
+from vhgen.sensor.config import SensorConfig
+
+F, B = 571.26, 0.075
+
+
+def test_bench_fidelity_quick(tmp_path):
+    from vhgen.bench.fidelity import bench_fidelity
+
+    res = bench_fidelity(tmp_path, quick=True, human=False,
+                         configs=("ideal", "kinect_v1_full"))
+    data = json.loads((tmp_path / "fidelity.json").read_text())
+    assert (tmp_path / "fidelity.png").stat().st_size > 10_000
+    assert "kinect_v1_full" in (tmp_path / "table.txt").read_text()
+    ideal = data["configs"]["ideal"]["summary"]
+    full = data["configs"]["kinect_v1_full"]["summary"]
+    ref = data["configs"][data["reference"]]["summary"]
+    assert ref["valid_iou"] == 1.0 and ref["rms_raw"] == 0.0
+    # the full model casts shadows and loses thin rods like the reference; ideal does not
+    assert full["shadow_width_error_px"] < ideal["shadow_width_error_px"]
+    assert full["rod_recall"]["2"] < 0.5 <= ideal["rod_recall"]["2"]
+    assert full["ms_per_frame"] > ideal["ms_per_frame"]
+    assert full["hole_iou"] > ideal["hole_iou"]
+    assert res["table"].splitlines()[0].startswith("fidelity against")
+
+
+def test_analytic_scenes_are_exact():
+    intr = SensorConfig.load("ideal").intrinsics
+    frames = suite(intr, B, quick=True)
+    plane = next(f for f in frames if f.kind == "plane")
+    np.testing.assert_allclose(plane.depth, 2.0)
+    step = next(f for f in frames if f.kind == "step")
+    assert step.depth[100, 400] == pytest.approx(1.0) and step.depth[100, 100] == 3.0
+    # the projector at +b sees the foreground edge shifted left by f b / z
+    cols = np.flatnonzero(step.projector_depth[100] < 2.0)
+    assert abs(cols[0] - (intr.cx - F * B / 1.0)) <= 1

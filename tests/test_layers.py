@@ -1,0 +1,160 @@
+"""The package graph points down: a module imports only its own layer and the ones below.
+
+Every import under vhgen/ counts, including those inside functions and under
+``TYPE_CHECKING``. The order is written once, in LAYERS (lowest first): extend it there.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import vhgen
+
+ROOT = Path(vhgen.__file__).parent
+
+# Lowest first. A module belongs to the first entry that is a prefix of its dotted name
+# (without the leading "vhgen."); modules in the same layer may import each other.
+LAYERS: list[tuple[str, ...]] = [
+    ("errors", "yamlio"),
+    ("rotations", "camera", "assets"),
+    ("mocap", "body", "sensor"),
+    ("config",),
+    ("store",),
+    ("render", "preview"),
+    ("pipeline",),
+    ("bench",),
+    ("forest",),
+    ("dataset", "cli", "__init__", "__main__"),
+]
+# Backends: which modules may import them at all (prefix match on the dotted name).
+BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",),
+            "glcontext": ("render",)}
+
+
+def _layer(mod: str) -> int:
+    for i, names in enumerate(LAYERS):
+        if any(mod == n or mod.startswith(n + ".") for n in names):
+            return i
+    raise AssertionError(f"vhgen.{mod} is in no layer: add it to LAYERS in {__file__}")
+
+
+def _is_module(dotted: str) -> bool:
+    p = ROOT.parent.joinpath(*dotted.split("."))
+    return p.with_suffix(".py").is_file() or (p / "__init__.py").is_file()
+
+
+def _module(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__" and len(parts) > 1:
+        parts.pop()
+    return ".".join(parts)
+
+
+def _imports(path: Path, mod: str) -> list[tuple[int, str]]:
+    """(line, absolute dotted name) of every import in the file."""
+    out = []
+    package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = ".".join(["vhgen", *package.split(".")][: len(package.split(".")) + 2
+                                                                  - node.level])
+                name = f"{base}.{node.module}" if node.module else base
+            else:
+                name = node.module or ""
+            out.append((node.lineno, name))
+            # `from vhgen.sensor import effects` imports the submodule
+            out += [(node.lineno, f"{name}.{a.name}") for a in node.names
+                    if name.startswith("vhgen") and _is_module(f"{name}.{a.name}")]
+    return out
+
+
+def _edges():
+    for path in sorted(ROOT.rglob("*.py")):
+        mod = _module(path)
+        for line, name in _imports(path, mod):
+            yield path, line, mod, name
+
+
+def test_no_upward_import():
+    bad = []
+    for path, line, mod, name in _edges():
+        if name.startswith("vhgen."):
+            target = name[len("vhgen."):]
+            if _layer(target) > _layer(mod):
+                bad.append(f"{path.relative_to(ROOT.parent)}:{line}: vhgen.{mod} -> {name}")
+    assert not bad, "upward imports:\n" + "\n".join(bad)
+
+
+def test_backends_only_where_allowed():
+    bad = []
+    for path, line, mod, name in _edges():
+        top = name.split(".")[0]
+        allowed = BACKENDS.get(top)
+        if allowed is not None and not any(mod == a or mod.startswith(a + ".")
+                                           for a in allowed):
+            bad.append(f"{path.relative_to(ROOT.parent)}:{line}: vhgen.{mod} imports {top}")
+    assert not bad, "backend imports outside their modules:\n" + "\n".join(bad)
+
+
+def test_every_module_has_a_layer():
+    for path in ROOT.rglob("*.py"):
+        _layer(_module(path))
+
+
+def test_import_vhgen_is_light():
+    code = ("import sys, time; t = time.perf_counter(); import vhgen; "
+            "vhgen.SensorConfig.load('kinect_v1_full'); "
+            "print(time.perf_counter() - t); "
+            "bad = [m for m in ('scipy.ndimage', 'scipy', 'numba', 'vhgen.sensor.kernels', "
+            "'moderngl', 'glcontext', 'ray', 'zarr', 'pyarrow') if m in sys.modules]; "
+            "print(','.join(bad)); sys.exit(1 if bad else 0)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_no_import_cycles():
+    """No module reaches itself through imports (inside functions included), so no
+    import is ever placed in a function to dodge a cycle."""
+    graph: dict[str, set[str]] = {}
+    mods = {_module(p) for p in ROOT.rglob("*.py")}
+    for _, _, mod, name in _edges():
+        target = name[len("vhgen."):] if name.startswith("vhgen.") else None
+        while target and target not in mods:  # `from vhgen.x import name`
+            target = target.rpartition(".")[0]
+        if target and target != mod:
+            graph.setdefault(mod, set()).add(target)
+
+    def reach(start: str) -> set[str]:
+        seen, todo = set(), [start]
+        while todo:
+            for n in graph.get(todo.pop(), ()):
+                if n not in seen:
+                    seen.add(n)
+                    todo.append(n)
+        return seen
+
+    def nested(a: str, b: str) -> bool:  # a package and its own submodule
+        return a.startswith(b + ".") or b.startswith(a + ".") or "__init__" in (a, b)
+
+    cycles = sorted(m for m in graph
+                    if any(m in reach(n) and not nested(m, n) for n in reach(m) - {m}))
+    assert not cycles, f"modules on an import cycle: {cycles}"
+
+
+if __name__ == "__main__":
+    # `python tests/test_layers.py > graph.dot`: the package graph (dot -Tsvg), layer ranks
+    edges = {(mod.split(".")[0], name.split(".")[1]) for _, _, mod, name in _edges()
+             if name.startswith("vhgen.") and mod.split(".")[0] != name.split(".")[1]}
+    print("digraph vhgen {\n  rankdir=BT;")
+    for i, names in enumerate(LAYERS):
+        nodes = "; ".join('"' + n + '"' for n in names)
+        print(f"  {{rank=same; {nodes}}}  // layer {i}")
+    for a, b in sorted(edges):
+        print(f'  "{a}" -> "{b}";')
+    print("}")

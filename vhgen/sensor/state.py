@@ -1,0 +1,109 @@
+"""The per-frame working state the runtime stages act on, and the fast N(0, 1) table.
+
+The state holds the image in the depth domain (planar z, metres) or the disparity domain
+(d = f b / z, px, float64) and converts lazily, only on valid pixels, so invalid pixels
+never produce inf or NaN.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.special import ndtri
+
+from vhgen.camera import Intrinsics
+from vhgen.sensor.kernels import incidence_cos, invert_inplace, remove_pixels
+
+# hole causes of the shipped effects (an added effect may record its own)
+HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",
+               "matching")
+
+
+def _normal_table() -> np.ndarray:
+    """65536 quantiles of N(0, 1), rescaled to unit variance (tails cut at 4.3 sigma)."""
+    t = ndtri((np.arange(65536) + 0.5) / 65536)
+    return (t / t.std()).astype(np.float64)
+
+
+NORMAL_TABLE = _normal_table()
+NORMAL_TABLE.setflags(write=False)
+
+
+@dataclass
+class SensorState:
+    """Per-frame working state. Arrays are (H, W) unless noted."""
+
+    intr: Intrinsics
+    baseline_m: float
+    z: np.ndarray | None  # float64 metres (depth domain), 0 where invalid
+    valid: np.ndarray  # bool
+    labels: np.ndarray | None = None
+    normals: np.ndarray | None = None  # (H, W, 3) camera frame, facing the camera
+    projector_depth: np.ndarray | None = None  # planar depth seen from the projector
+    d: np.ndarray | None = None  # float64 px (disparity domain) when domain == "d"
+    domain: str = "z"
+    holes: dict[str, np.ndarray] = field(default_factory=dict)  # cause -> removed pixels
+    rays_unit: np.ndarray | None = None  # (H, W, 3) unit viewing rays (cached per sensor)
+    ray_norm: np.ndarray | None = None  # (H, W) |ray| for z = 1
+    pattern: np.ndarray | None = None  # the projector's binary dot pattern
+
+    @property
+    def fb(self) -> float:
+        """f b, px m: disparity d = fb / z."""
+        return self.intr.fx * self.baseline_m
+
+    def to_disparity(self) -> np.ndarray:
+        """Switch to the disparity domain (in place: the depth array becomes d)."""
+        if self.domain == "z":
+            assert self.z is not None
+            invert_inplace(self.z, self.valid, self.fb)
+            self.d, self.z = self.z, None
+            self.domain = "d"
+        assert self.d is not None
+        return self.d
+
+    def to_depth(self) -> np.ndarray:
+        """Switch to the depth domain (in place: the disparity array becomes z)."""
+        if self.domain == "d":
+            assert self.d is not None
+            invert_inplace(self.d, self.valid, self.fb)
+            self.z, self.d = self.d, None
+            self.domain = "z"
+        assert self.z is not None
+        return self.z
+
+    def active(self) -> np.ndarray:
+        """The measurement array of the current domain."""
+        a = self.z if self.domain == "z" else self.d
+        assert a is not None
+        return a
+
+    def normals_cos(self) -> np.ndarray:
+        """|cos| of the incidence angle per pixel (needs normals), (H, W) float64."""
+        if self.normals is None:
+            raise ValueError("this effect needs normals")
+        return incidence_cos(np.ascontiguousarray(self.normals), self.rays_unit)
+
+    def normal_draws(self, rng: np.random.Generator) -> np.ndarray:
+        """One uint16 draw per pixel, to be mapped through NORMAL_TABLE (fast N(0, 1))."""
+        return rng.integers(0, 65536, size=self.valid.size, dtype=np.uint16)
+
+    def hole(self, cause: str) -> np.ndarray:
+        """The hole mask of ``cause`` (a fresh all-False mask if none yet)."""
+        h = self.holes.get(cause)
+        return np.zeros_like(self.valid) if h is None else h
+
+    def record(self, kernel: Callable[[np.ndarray], int], cause: str) -> None:
+        """Run ``kernel(hole_mask)``, a fused pass that removes pixels itself, marking them
+        in the cause's hole mask; it returns how many it removed."""
+        hole = self.hole(cause)
+        if kernel(hole):
+            self.holes[cause] = hole
+
+    def invalidate(self, mask: np.ndarray, cause: str) -> None:
+        """Remove ``mask`` pixels (recording why) and zero them in the active domain."""
+        arr = self.active()
+        self.record(lambda hole: remove_pixels(np.ascontiguousarray(mask), self.valid, arr,
+                                               hole), cause)
