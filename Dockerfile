@@ -20,6 +20,9 @@ RUN mkdir -p /usr/share/glvnd/egl_vendor.d && \
 WORKDIR /opt/vhgen
 COPY . /opt/vhgen
 RUN bash scripts/setup.sh
+# KubeRay starts Ray through a login shell (bash -l), whose /etc/profile resets PATH: put
+# the virtualenv back for `ray start` and the job's `python`
+RUN echo 'export PATH=/opt/vhgen/.venv/bin:$PATH' > /etc/profile.d/vhgen.sh
 
 ENTRYPOINT ["vhgen"]
 CMD ["generate", "configs/scenes/default.yaml", "--out", "/data/default.zarr"]

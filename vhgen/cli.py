@@ -185,6 +185,14 @@ def _cmd_info(args) -> int:
     return 0
 
 
+def _cmd_inspect(args) -> int:
+    from vhgen.store.inspect import inspect_store, report_json
+
+    rep = inspect_store(args.store)
+    print(report_json(rep) if args.json else rep.format())
+    return 0 if rep.ok else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="vhgen", description=__doc__)
     p.add_argument("-v", "--verbose", action="store_true", help="log progress")
@@ -283,6 +291,12 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="summary of a dataset")
     i.add_argument("store")
     i.set_defaults(func=_cmd_info)
+
+    ins = sub.add_parser("inspect", help="verify a dataset: frames, arrays vs manifest, shards "
+                                         "readable; part histogram (exit 1 on any defect)")
+    ins.add_argument("store")
+    ins.add_argument("--json", action="store_true", help="print the report as JSON")
+    ins.set_defaults(func=_cmd_inspect)
     return p
 
 

@@ -107,6 +107,7 @@ class JobConfig:
     num_workers: int
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
+    gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
 
     @classmethod
     def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
@@ -169,13 +170,19 @@ class JobConfig:
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}
-        check_keys(ren, {"backend", "skinning"}, set(), path, "render.")
+        check_keys(ren, {"backend", "skinning", "gpus_per_worker"}, set(), path, "render.")
         skinning = ren.get("skinning", "lbs")
         if skinning not in ("lbs", "dqs"):
             raise ConfigError(path, "render.skinning", f"must be lbs or dqs, got {skinning!r}")
         backend = overrides.pop("backend", None) or ren.get("backend", "egl")
         if backend not in ("egl", "osmesa"):
             raise ConfigError(path, "render.backend", f"must be egl or osmesa, got {backend!r}")
+        gpus = overrides.pop("gpus_per_worker", None)
+        gpus = _num(ren, "gpus_per_worker", path, "render.", lo=0, hi=64, default=0.0) \
+            if gpus is None else float(gpus)
+        if gpus > 0 and backend != "egl":
+            raise ConfigError(path, "render.gpus_per_worker", "GPU workers render through EGL; "
+                              f"render.backend is {backend!r}")
         num_workers = overrides.pop("num_workers", None) or _num(
             d, "num_workers", path, "", lo=1, hi=4096, integer=True, default=2)
         if overrides:
@@ -205,4 +212,5 @@ class JobConfig:
                                   integer=True, default=16),
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True, default=3),
-            backend=backend, skinning=skinning, num_workers=num_workers, source=str(path))
+            backend=backend, skinning=skinning, num_workers=num_workers, source=str(path),
+            gpus_per_worker=gpus)

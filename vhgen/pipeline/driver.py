@@ -26,6 +26,7 @@ from vhgen.errors import StoreError, VhgenError
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import make_plan
 from vhgen.pipeline.poses import load_poses
+from vhgen.pipeline.resources import actor_options
 from vhgen.store.manifest import merge_parts
 from vhgen.store.zarr_store import clean_partials, completed_shards, create_store, read_attrs
 
@@ -41,12 +42,14 @@ class FrameWorker:
         import ray
 
         from vhgen.pipeline.frames import FrameGenerator
+        from vhgen.pipeline.resources import worker_context
 
         # the big arrays arrive as nested refs (zero-copy from the object store); passing
         # them as top-level arguments would tie actor restarts to their lifetime
         rotations, roots, pose_meta, plan_arrays = ray.get(list(shared_refs))
         self.gen = FrameGenerator(cfg, asset_dir, rotations, roots, pose_meta, plan_arrays,
-                                  avatars)
+                                  avatars, context=worker_context(
+                                      cfg, os.environ.get("CUDA_VISIBLE_DEVICES")))
         self.fail_once = fail_once  # (marker folder, shards) for fault-injection tests
 
     def renderer(self) -> str:
@@ -136,7 +139,8 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         refs = [ray.put(x) for x in (poses.rotations, poses.roots, pose_meta, plan_arrays)]
         # Actors are not restarted by Ray: the driver replaces a dead actor itself and
         # resubmits its shard, so a restart never depends on constructor arguments.
-        actor_cls = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(FrameWorker)
+        opts = actor_options(cfg, ray.cluster_resources() if started else None)
+        actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
         n_actors = max(1, min(cfg.num_workers, len(todo)))
         fail_once = None
         if fail_once_shards:

@@ -17,6 +17,8 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from vhgen.errors import RenderError
@@ -121,4 +123,146 @@ def create_context(backend: str = "egl", *, device_index: int = 0,
         ctx.release()
         raise RenderError(f"GL_RENDERER is {renderer!r}, which lacks the required "
                           f"{require_renderer!r} (fallback to software rendering?)")
+    return ctx
+
+
+# --- choosing the EGL device of a GPU worker -------------------------------------------
+# EGL numbers its devices in its own order (what glcontext's device_index counts), which
+# need not match CUDA's. NVIDIA's EGL_NV_device_cuda tells each device's CUDA ordinal; the
+# driver reports ordinals as CUDA sees them in this process, i.e. relative to
+# CUDA_VISIBLE_DEVICES (Ray sets it to the GPU it assigned to the actor), so the actor's
+# GPU is the device with CUDA ordinal 0. Software devices (Mesa llvmpipe/softpipe) carry
+# EGL_MESA_device_software and no CUDA ordinal.
+
+_EGL_EXTENSIONS = 0x3055
+_EGL_CUDA_DEVICE_NV = 0x323A
+_EGL_DRM_DEVICE_FILE_EXT = 0x3233
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software rasterizer")
+
+
+@dataclass(frozen=True)
+class EGLDevice:
+    """One EGL device as enumerated by ``eglQueryDevicesEXT``.
+
+    index : position in EGL's enumeration (glcontext's ``device_index``).
+    extensions : the device's extension strings.
+    cuda_id : ``EGL_CUDA_DEVICE_NV`` (CUDA ordinal, relative to CUDA_VISIBLE_DEVICES), or
+        None where the device has no CUDA ordinal (Mesa, or a GPU hidden from CUDA).
+    drm_path : ``EGL_DRM_DEVICE_FILE_EXT`` (e.g. ``/dev/dri/card1``) if known.
+    """
+
+    index: int
+    extensions: tuple[str, ...] = ()
+    cuda_id: int | None = None
+    drm_path: str | None = None
+
+    @property
+    def software(self) -> bool:
+        return "EGL_MESA_device_software" in self.extensions
+
+    def describe(self) -> str:
+        kind = "software" if self.software else (
+            f"CUDA {self.cuda_id}" if self.cuda_id is not None else "no CUDA ordinal")
+        drm = f", {self.drm_path}" if self.drm_path else ""
+        return f"EGL device {self.index} ({kind}{drm})"
+
+
+def choose_egl_device(devices: Sequence[EGLDevice], cuda_visible_devices: str | None) -> EGLDevice:
+    """The EGL device of a worker that was given a GPU (pure; no EGL calls).
+
+    devices : the enumeration (:func:`query_egl_devices`).
+    cuda_visible_devices : the worker's ``CUDA_VISIBLE_DEVICES`` as Ray set it (e.g. ``"3"``
+        or ``"GPU-8f2e..."``), or None if unset.
+    Returns the device whose CUDA ordinal is 0 (the first GPU visible to this process).
+    Raises :class:`RenderError` (naming every device) when no GPU is visible, when only
+    software devices exist, or when no device, or more than one, has CUDA ordinal 0.
+    """
+    listing = "; ".join(d.describe() for d in devices) or "none"
+    if cuda_visible_devices is not None and cuda_visible_devices.strip() in ("", "-1",
+                                                                            "NoDevFiles"):
+        raise RenderError(f"a GPU was requested but CUDA_VISIBLE_DEVICES="
+                          f"{cuda_visible_devices!r} hides every GPU (EGL devices: {listing})")
+    gpus = [d for d in devices if d.cuda_id is not None and not d.software]
+    if not gpus:
+        raise RenderError("a GPU was requested but no EGL device has a CUDA ordinal "
+                          f"(EGL_NV_device_cuda), so only software rendering is available "
+                          f"(EGL devices: {listing}); is the NVIDIA driver's EGL installed "
+                          "and the container started with graphics capability?")
+    match = [d for d in gpus if d.cuda_id == 0]
+    visible = cuda_visible_devices if cuda_visible_devices is not None else "unset"
+    if len(match) != 1:
+        why = "none has" if not match else f"{len(match)} have"
+        raise RenderError(f"a GPU was requested (CUDA_VISIBLE_DEVICES={visible}) but {why} "
+                          f"CUDA ordinal 0 among the EGL devices: {listing}")
+    return match[0]
+
+
+def is_software_renderer(renderer: str) -> bool:
+    """True for Mesa's CPU rasterisers (``GL_RENDERER`` such as ``llvmpipe (LLVM 15...)``)."""
+    r = renderer.lower()
+    return any(s in r for s in SOFTWARE_RENDERERS)
+
+
+def query_egl_devices() -> list[EGLDevice]:
+    """Enumerate EGL devices through libEGL (EGL_EXT_device_enumeration / _query).
+
+    Returns one :class:`EGLDevice` per device, in EGL's order. Raises :class:`RenderError`
+    if libEGL or the device extensions are missing.
+    """
+    name = ctypes.util.find_library("EGL") or "libEGL.so.1"
+    try:
+        lib = ctypes.CDLL(name)
+    except OSError as e:
+        raise RenderError(f"cannot load {name} ({e}); on Debian install libegl1") from None
+    lib.eglGetProcAddress.restype = ctypes.c_void_p
+    lib.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+
+    def proc(fname: str, restype: Any, *argtypes: Any) -> Any:
+        addr = lib.eglGetProcAddress(fname.encode())
+        if not addr:
+            raise RenderError(f"libEGL lacks {fname} (EGL_EXT_device_enumeration/query)")
+        return ctypes.CFUNCTYPE(restype, *argtypes)(addr)
+
+    query_devices = proc("eglQueryDevicesEXT", ctypes.c_uint, ctypes.c_int,
+                         ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int))
+    query_string = proc("eglQueryDeviceStringEXT", ctypes.c_char_p, ctypes.c_void_p,
+                        ctypes.c_int)
+    query_attrib = proc("eglQueryDeviceAttribEXT", ctypes.c_uint, ctypes.c_void_p, ctypes.c_int,
+                        ctypes.POINTER(ctypes.c_ssize_t))
+    n = ctypes.c_int(0)
+    if not query_devices(0, None, ctypes.byref(n)):
+        raise RenderError("eglQueryDevicesEXT failed")
+    handles = (ctypes.c_void_p * max(n.value, 1))()
+    if not query_devices(n.value, handles, ctypes.byref(n)):
+        raise RenderError("eglQueryDevicesEXT failed")
+    out = []
+    for i in range(n.value):
+        ext_raw = query_string(handles[i], _EGL_EXTENSIONS)
+        exts = tuple(ext_raw.decode(errors="replace").split()) if ext_raw else ()
+        cuda_id = None
+        if "EGL_NV_device_cuda" in exts:
+            v = ctypes.c_ssize_t(-1)
+            if query_attrib(handles[i], _EGL_CUDA_DEVICE_NV, ctypes.byref(v)) and v.value >= 0:
+                cuda_id = int(v.value)
+        drm = None
+        if "EGL_EXT_device_drm" in exts:
+            raw = query_string(handles[i], _EGL_DRM_DEVICE_FILE_EXT)
+            drm = raw.decode(errors="replace") if raw else None
+        out.append(EGLDevice(i, exts, cuda_id, drm))
+    return out
+
+
+def create_gpu_context(cuda_visible_devices: str | None):
+    """A moderngl context on this worker's GPU: EGL device chosen by
+    :func:`choose_egl_device`, logged, and refused if it renders in software."""
+    devices = query_egl_devices()
+    dev = choose_egl_device(devices, cuda_visible_devices)
+    ctx = create_context("egl", device_index=dev.index)
+    renderer = ctx.info.get("GL_RENDERER", "?")
+    log.info("GPU worker: CUDA_VISIBLE_DEVICES=%s -> %s, GL_RENDERER=%s", cuda_visible_devices,
+             dev.describe(), renderer)
+    if is_software_renderer(renderer):
+        ctx.release()
+        raise RenderError(f"a GPU was requested but {dev.describe()} renders with "
+                          f"{renderer!r} (software); refusing to run on the CPU")
     return ctx

@@ -1,0 +1,169 @@
+"""Resident memory (RSS) of every frame actor over a long run: does it stay flat?
+
+    .venv/bin/python benchmarks/bench_memory.py --frames 20000 --workers 2 --every 1000
+
+Runs the real job (``run_job`` through Ray, the shared CMU corpus, many avatars so actors
+also switch bodies) and, from a thread of the driver, samples the RSS of each
+``FrameWorker`` actor process (found among this process's descendants) whenever another
+``--every`` frames have been written (counted from the manifest parts on disk). Prints
+RSS per actor at each checkpoint, the growth from the first checkpoint to the last, and the
+growth over the second half of the run (middle checkpoint to last). RSS steps up during
+warm-up (kernels compiled, allocator pools filled, the first larger avatar body, which
+the allocator keeps as its high-water mark) and must then stay flat. Goal: below 5% per
+actor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+SHARED = REPO.parent / "shared" / "mocap" / "cmu"
+
+CONFIG = """
+name: memory
+seed: 1
+motions: [{motions}]
+sensor: {sensor}
+poses: {{frame_step: {step}, skip_first: 1, max_per_motion: {per_motion}}}
+avatars: {{count: {avatars}, tights_probability: 0.3, skirt_probability: 0.2}}
+output: {{frames_per_shard: {fps}}}
+render: {{backend: {backend}}}
+num_workers: {workers}
+"""
+
+
+def _children() -> dict[int, list[int]]:
+    kids: dict[int, list[int]] = {}
+    for p in Path("/proc").iterdir():
+        if not p.name.isdigit():
+            continue
+        try:
+            stat = (p / "stat").read_text()
+        except OSError:
+            continue
+        ppid = int(stat.rsplit(")", 1)[1].split()[1])
+        kids.setdefault(ppid, []).append(int(p.name))
+    return kids
+
+
+def actor_rss_mb(root: int) -> dict[int, float]:
+    """pid -> RSS in MB of the FrameWorker actors descending from ``root``."""
+    kids, out, todo = _children(), {}, [root]
+    while todo:
+        pid = todo.pop()
+        todo += kids.get(pid, [])
+        try:
+            cmd = (Path("/proc") / str(pid) / "cmdline").read_bytes()
+            if not cmd.startswith(b"ray::FrameWorker"):
+                continue
+            for line in (Path("/proc") / str(pid) / "status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    out[pid] = int(line.split()[1]) / 1024
+        except OSError:
+            continue
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--frames", type=int, default=20000, help="frames to generate (about)")
+    ap.add_argument("--every", type=int, default=1000, help="checkpoint every n frames")
+    ap.add_argument("--workers", type=int, default=2, help="frame actors")
+    ap.add_argument("--frame-step", type=int, default=2, help="poses: every n-th source frame")
+    ap.add_argument("--avatars", type=int, default=8,
+                    help="avatars (more if the corpus has too few poses for --frames)")
+    ap.add_argument("--sensor", default="kinect_v1_full")
+    ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
+    ap.add_argument("--frames-per-shard", type=int, default=32)
+    ap.add_argument("--out", help="store path (default: a temporary folder, removed)")
+    args = ap.parse_args()
+
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.config import JobConfig
+    from vhgen.mocap.retarget import load_all_maps
+    from vhgen.pipeline.driver import run_job
+    from vhgen.pipeline.poses import load_poses
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg_path = Path(tmp) / "memory.yaml"
+
+        def write(avatars: int, per_motion: int) -> JobConfig:
+            cfg_path.write_text(CONFIG.format(
+                motions=SHARED, sensor=args.sensor, step=args.frame_step, avatars=avatars,
+                per_motion=per_motion, fps=args.frames_per_shard, backend=args.backend,
+                workers=args.workers))
+            return JobConfig.load(cfg_path)
+
+        # frames = poses x avatars: cap the poses per motion file so that --avatars
+        # avatars give about --frames frames; add avatars if the corpus is too small
+        cfg = write(1, 0)
+        base = build_body(resolve_asset_dir(cfg.assets), LabelScheme.load(cfg.labels))
+        rmap = load_all_maps()
+        poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+        files = max(1, sum(r["status"] == "ok" for r in poses.report))
+        per_motion = math.ceil(args.frames / args.avatars / files)
+        cfg = write(1, per_motion)
+        poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+        cfg = write(max(args.avatars, math.ceil(args.frames / poses.num_poses)), per_motion)
+        total = cfg.avatars.count * poses.num_poses
+        out = Path(args.out) if args.out else Path(tmp) / "memory.zarr"
+        print(f"{total} frames: {poses.num_poses} poses x {cfg.avatars.count} avatars, "
+              f"{args.workers} actors, sensor {args.sensor}, backend {args.backend}")
+
+        samples: list[tuple[int, float, dict[int, float]]] = []
+        done = threading.Event()
+        t0 = time.perf_counter()
+
+        def sample() -> None:
+            next_mark = args.every
+            parts = out / "manifest"
+            while not done.is_set():
+                n = len(list(parts.glob("part-*.parquet"))) * args.frames_per_shard \
+                    if parts.is_dir() else 0
+                if n >= next_mark:
+                    samples.append((n, time.perf_counter() - t0, actor_rss_mb(os.getpid())))
+                    next_mark = (n // args.every + 1) * args.every
+                done.wait(0.5)
+
+        th = threading.Thread(target=sample, daemon=True)
+        th.start()
+        try:
+            summary = run_job(cfg, out, overwrite=True)
+        finally:
+            done.set()
+            th.join()
+
+    pids = sorted({p for _, _, r in samples for p in r})
+    names = {p: f"actor {i}" for i, p in enumerate(pids)}
+    print(f"\n{'frames':>7} {'s':>7}  " + "  ".join(f"{names[p] + ' MB':>12}" for p in pids))
+    for n, t, rss in samples:
+        print(f"{n:>7} {t:>7.0f}  " + "  ".join(
+            f"{rss[p]:>12.1f}" if p in rss else f"{'-':>12}" for p in pids))
+    print(f"\n{summary['frames']} frames in {summary['seconds']:.0f} s "
+          f"({summary['frames'] / summary['render_seconds']:.1f} frames/s while rendering); "
+          f"{summary['retries']} retries")
+    print(f"{'actor':<10} {'first MB':>9} {'mid MB':>9} {'last MB':>9} {'peak MB':>9} "
+          f"{'growth %':>9} {'2nd half %':>10}")
+    for p in pids:
+        series = [r[p] for _, _, r in samples if p in r]
+        if len(series) < 2:
+            print(f"{names[p]:<10} (one sample: run longer or lower --every)")
+            continue
+        mid = series[len(series) // 2]
+        # growth: first checkpoint to last (includes warm-up steps such as the first larger
+        # avatar); 2nd half: middle checkpoint to last, the leak indicator of a long run
+        print(f"{names[p]:<10} {series[0]:>9.1f} {mid:>9.1f} {series[-1]:>9.1f} "
+              f"{max(series):>9.1f} {100 * (series[-1] - series[0]) / series[0]:>9.2f} "
+              f"{100 * (series[-1] - mid) / mid:>10.2f}")
+
+if __name__ == "__main__":
+    main()
