@@ -30,7 +30,9 @@ LAYERS: list[tuple[str, ...]] = [
     ("dataset", "cli", "__init__", "__main__"),
 ]
 # Backends: which modules may import them at all (prefix match on the dotted name).
-BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",),
+# vhgen.dataset.to_ray is the one reader that is a Ray entry point (Ray Data), imported
+# inside that function only; `import vhgen` staying Ray-free is checked below.
+BACKENDS = {"ray": ("pipeline.driver", "forest.driver", "dataset"), "moderngl": ("render",),
             "glcontext": ("render",)}
 
 
