@@ -35,9 +35,27 @@ def _cmd_generate(args) -> int:
 
 
 def _cmd_corpus_build(args) -> int:
+    from vhgen.errors import ConfigError
     from vhgen.mocap.corpus import DEFAULT_EXCLUDE, SparsifySettings, build_corpus
     from vhgen.mocap.units import parse_units
 
+    if args.map is not None:
+        from vhgen.mocap.retarget import RetargetMap
+
+        p = Path(args.map)
+        if p.suffix in (".yaml", ".yml") and not p.is_file():
+            raise ConfigError(None, "--map", f"{p} does not exist")
+        RetargetMap.load(args.map)  # fail early, one line naming the field
+    if args.explain is not None:
+        if args.inputs:
+            raise ConfigError(None, "--explain", "takes one BVH file and no other inputs "
+                                                 f"(got {' '.join(args.inputs)})")
+        return _explain(args)
+    if not args.inputs:
+        raise ConfigError(None, "inputs", "give at least one BVH file or folder "
+                                          "(or --explain FILE)")
+    if not args.output:
+        raise ConfigError(None, "--output", "required: the pose table to write (.parquet)")
     settings = SparsifySettings(
         metric=args.metric, min_angle_deg=args.min_angle_deg,
         min_distance_m=args.min_distance_m,
@@ -46,11 +64,50 @@ def _cmd_corpus_build(args) -> int:
         allow_truncated=args.allow_truncated)
     summary = build_corpus(args.inputs, args.output, settings=settings, asset_dir=args.assets,
                            report=args.report, workers=args.workers,
-                           units_m=parse_units(args.units, None, "--units"), strict=args.strict)
+                           units_m=parse_units(args.units, None, "--units"), strict=args.strict,
+                           map_file=args.map)
     for f in summary["failed"]:
         print(f"skipped {f['file']}: {f['error']}", file=sys.stderr)
+    if args.report:
+        from vhgen.mocap.automap import report_table
+
+        with open(args.report) as fh:
+            print(report_table(json.load(fh)["files"]))
     print(f"{summary['ok']}/{summary['files']} files, {summary['poses_read']} poses read, "
           f"{summary['poses_kept']} kept -> {summary['table']}")
+    return 0
+
+
+def _explain(args) -> int:
+    """--explain FILE: the mapping table, and the map as an editable YAML."""
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.mesh import load_base_mesh, load_rig
+    from vhgen.errors import ConfigError
+    from vhgen.mocap.automap import explain_table, map_to_yaml
+    from vhgen.mocap.bvh import read_bvh
+    from vhgen.mocap.retarget import (
+        RetargetMap,
+        build_retargeter,
+        detect_dialect,
+        load_all_maps,
+    )
+
+    src = Path(args.explain)
+    if not src.is_file():
+        raise ConfigError(None, "--explain", f"{src} is not a BVH file")
+    out = Path(args.output) if args.output else Path(f"{src.stem}.map.yaml")
+    if out.suffix not in (".yaml", ".yml"):
+        raise ConfigError(None, "--output", f"with --explain, the map to write (.yaml), got "
+                                            f"{out}")
+    motion = read_bvh(src, allow_truncated=args.allow_truncated)
+    rmap = RetargetMap.load(args.map) if args.map else detect_dialect(motion, load_all_maps())
+    asset_dir = resolve_asset_dir(args.assets)
+    base = load_base_mesh(asset_dir)
+    rig = load_rig(asset_dir, base.vertices, base.vertex_groups)
+    rt = build_retargeter(motion, rig, rmap)
+    print(explain_table(motion, rmap, rt))
+    out.write_text(map_to_yaml(rmap, str(src)))
+    print(f"wrote {out}: edit the targets and pass it back with --map {out}")
     return 0
 
 
@@ -162,8 +219,16 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("corpus", help="motion corpora")
     csub = c.add_subparsers(dest="corpus_cmd", required=True)
     b = csub.add_parser("build", help="BVH files/folders -> retargeted, sparsified pose table")
-    b.add_argument("inputs", nargs="+", help="BVH files or folders (searched recursively)")
-    b.add_argument("-o", "--output", required=True, help="pose table (.parquet)")
+    b.add_argument("inputs", nargs="*", help="BVH files or folders (searched recursively)")
+    b.add_argument("-o", "--output",
+                   help="pose table (.parquet); with --explain, the map YAML to write")
+    b.add_argument("--explain", metavar="FILE",
+                   help="print how FILE's skeleton maps onto the rig (per joint, with the "
+                        "reason and a confidence) and write that mapping as an editable "
+                        "retarget-map YAML (-o, default FILE-stem.map.yaml)")
+    b.add_argument("--map", metavar="YAML",
+                   help="retarget map for every input (a YAML from --explain, edited, or a "
+                        "shipped map name) instead of detection")
     b.add_argument("--min-angle-deg", type=float, default=5.0,
                    help="keep a pose only if some joint differs by at least this angle "
                         "from every kept pose (default 5)")
@@ -179,7 +244,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="let finger and thumb rotations count in the distance")
     b.add_argument("--units", default=None,
                    help="override file units: m, cm, mm, inch, cmu or metres per unit")
-    b.add_argument("--report", help="JSON report: every file, status, frames, poses kept, error")
+    b.add_argument("--report", help="JSON report (every file: status, dialect or auto, "
+                                    "mapping confidence, poses kept, reference-pose error, "
+                                    "error); also printed as a table")
     b.add_argument("--workers", type=int, help="parallel file readers (default: all cores)")
     b.add_argument("--assets", help="MPFB2 asset folder (default: the fetched cache)")
     b.add_argument("--strict", action="store_true", help="fail if any file fails")

@@ -194,13 +194,18 @@ class JobConfig:
             sensor = SensorConfig.load(sensor_path)
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
+        retarget = str(d.get("retarget", "auto"))
+        if retarget.endswith((".yaml", ".yml")):  # a map file, relative to this config
+            retarget = str((path.parent / Path(retarget).expanduser()).resolve())
+            if not Path(retarget).is_file():
+                raise ConfigError(path, "retarget", f"map file {retarget} does not exist")
         assets = d.get("assets")
         if assets is not None:
             assets = str((path.parent / Path(assets).expanduser()).resolve())
         return cls(
             name=str(d["name"]),
             seed=_num(d, "seed", path, "", lo=0, hi=2**63 - 1, integer=True, default=0),
-            motions=tuple(resolved), retarget=str(d.get("retarget", "auto")),
+            motions=tuple(resolved), retarget=retarget,
             labels=str(d.get("labels", "shotton31")), sensor=sensor, assets=assets,
             poses=poses, avatars=avatars, camera=camera,
             frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,
