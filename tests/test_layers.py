@@ -21,16 +21,18 @@ LAYERS: list[tuple[str, ...]] = [
     ("errors", "yamlio"),
     ("rotations", "camera", "assets"),
     ("mocap", "body", "sensor"),
-    ("config",),
+    ("config", "cliargs"),
     ("store",),
     ("render", "preview"),
     ("pipeline",),
     ("bench",),
     ("forest",),
-    ("dataset", "cli", "cliargs", "__init__", "__main__"),
+    ("dataset", "cli", "__init__", "__main__"),
 ]
 # Backends: which modules may import them at all (prefix match on the dotted name).
-BACKENDS = {"ray": ("pipeline.driver", "forest.driver"), "moderngl": ("render",),
+# vhgen.dataset.to_ray is the one reader that is a Ray entry point (Ray Data), imported
+# inside that function only; `import vhgen` staying Ray-free is checked below.
+BACKENDS = {"ray": ("pipeline.driver", "forest.driver", "dataset"), "moderngl": ("render",),
             "glcontext": ("render",)}
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -23,10 +24,13 @@ from vhgen.errors import ConfigError, VhgenError
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: ``vhgen generate: error: argument --x: ...``."""
+    """argparse with one-line errors, like every user error of vhgen:
+    ``vhgen: error: generate: --num-workers -3: must be an integer in [1, 4096]``."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        message = re.sub(r"^argument (\S+): (.*: must be )", r"\1 \2", message)
+        where = self.prog.removeprefix("vhgen").strip()
+        self.exit(2, f"vhgen: error: {where + ': ' if where else ''}{message}\n")
 
 
 _Sub = Any  # argparse's private _SubParsersAction
@@ -113,6 +117,23 @@ def _add_generate(sub: _Sub) -> None:
 def _cmd_corpus_build(args: argparse.Namespace) -> int:
     from vhgen.mocap.corpus import DEFAULT_EXCLUDE, SparsifySettings, build_corpus
 
+    if args.map is not None:
+        from vhgen.mocap.retarget import RetargetMap
+
+        RetargetMap.load(args.map)  # fail early, one line naming the field
+    if args.explain is not None:
+        if args.inputs:
+            raise ConfigError(None, "--explain", "takes one BVH file and no other inputs "
+                                                 f"(got {' '.join(args.inputs)})")
+        return _explain(args)
+    if not args.inputs:
+        raise ConfigError(None, "inputs", "give at least one BVH file or folder "
+                                          "(or --explain FILE)")
+    if not args.output:
+        raise ConfigError(None, "--output", "required: the pose table to write (.parquet)")
+    if Path(args.output).suffix.lower() != ".parquet":
+        raise ConfigError(None, "--output", f"the pose table must end in .parquet, got "
+                                            f"{args.output}")
     settings = SparsifySettings(
         metric=args.metric, min_angle_deg=args.min_angle_deg,
         min_distance_m=args.min_distance_m,
@@ -121,11 +142,46 @@ def _cmd_corpus_build(args: argparse.Namespace) -> int:
         allow_truncated=args.allow_truncated)
     summary = build_corpus(args.inputs, args.output, settings=settings, asset_dir=args.assets,
                            report=args.report, workers=args.workers,
-                           units_m=args.units, strict=args.strict)
+                           units_m=args.units, strict=args.strict, map_file=args.map)
     for f in summary["failed"]:
         print(f"skipped {f['file']}: {f['error']}", file=sys.stderr)
+    if args.report:
+        from vhgen.mocap.automap import report_table
+
+        with open(args.report) as fh:
+            print(report_table(json.load(fh)["files"]))
     print(f"{summary['ok']}/{summary['files']} files, {summary['poses_read']} poses read, "
           f"{summary['poses_kept']} kept -> {summary['table']}")
+    return 0
+
+
+def _explain(args: argparse.Namespace) -> int:
+    """--explain FILE: the mapping table, and the map as an editable YAML."""
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.mesh import load_base_mesh, load_rig
+    from vhgen.mocap.automap import explain_table, map_to_yaml
+    from vhgen.mocap.bvh import read_bvh
+    from vhgen.mocap.retarget import (
+        RetargetMap,
+        build_retargeter,
+        detect_dialect,
+        load_all_maps,
+    )
+
+    src = Path(args.explain)
+    out = Path(args.output) if args.output else Path(f"{src.stem}.map.yaml")
+    if out.suffix not in (".yaml", ".yml"):
+        raise ConfigError(None, "--output", f"with --explain, the map to write (.yaml), got "
+                                            f"{out}")
+    motion = read_bvh(src, allow_truncated=args.allow_truncated)
+    rmap = RetargetMap.load(args.map) if args.map else detect_dialect(motion, load_all_maps())
+    asset_dir = resolve_asset_dir(args.assets)
+    base = load_base_mesh(asset_dir)
+    rig = load_rig(asset_dir, base.vertices, base.vertex_groups)
+    rt = build_retargeter(motion, rig, rmap)
+    print(explain_table(motion, rmap, rt))
+    out.write_text(map_to_yaml(rmap, str(src)))
+    print(f"wrote {out}: edit the targets and pass it back with --map {out}")
     return 0
 
 
@@ -134,10 +190,18 @@ def _add_corpus(sub: _Sub) -> None:
     csub = c.add_subparsers(dest="corpus_cmd", required=True)
     b = _leaf(csub, "build", "BVH files/folders -> retargeted, sparsified pose table",
               _cmd_corpus_build)
-    b.add_argument("inputs", nargs="+", type=A.existing_path(),
-                   help="BVH files or folders (searched recursively)")
-    b.add_argument("-o", "--output", required=True, type=A.output_path(".parquet"),
-                   help="pose table (.parquet)")
+    b.add_argument("inputs", nargs="*", type=A.text("path"),
+                   help="BVH files or folders (searched recursively; a missing one is an "
+                        "error before any is read)")
+    b.add_argument("-o", "--output", type=A.output_path(".parquet", ".yaml", ".yml"),
+                   help="pose table (.parquet); with --explain, the map YAML to write")
+    b.add_argument("--explain", metavar="FILE", type=A.existing_file(".bvh"),
+                   help="print how FILE's skeleton maps onto the rig (per joint, with the "
+                        "reason and a confidence) and write that mapping as an editable "
+                        "retarget-map YAML (-o, default FILE-stem.map.yaml)")
+    b.add_argument("--map", metavar="YAML", type=A.config_name("retarget"),
+                   help="retarget map for every input (a YAML from --explain, edited, or a "
+                        "shipped map name) instead of detection")
     b.add_argument("--min-angle-deg", type=A.float_range(0, 180, lo_open=True, hi_open=True),
                    default=5.0,
                    help="keep a pose only if some joint differs by at least this angle "
@@ -156,7 +220,9 @@ def _add_corpus(sub: _Sub) -> None:
     b.add_argument("--units", type=A.units(), default=None,
                    help="override file units: m, cm, mm, inch, cmu or metres per unit")
     b.add_argument("--report", type=A.output_path(".json"),
-                   help="JSON report: every file, status, frames, poses kept, error")
+                   help="JSON report (every file: status, dialect or auto, mapping "
+                        "confidence, poses kept, reference-pose error, error); also printed "
+                        "as a table")
     b.add_argument("--workers", type=A.int_range(1, 1024),
                    help="parallel file readers (default: all cores)")
     b.add_argument("--assets", type=A.existing_path(),
@@ -314,10 +380,18 @@ def _add_inspect(sub: _Sub) -> None:
     ins.add_argument("--json", action="store_true", help="print the report as JSON")
 
 
+# -- forest (vhgen/forest/cli.py) ----------------------------------------------------------
+
+def _add_forest(sub: _Sub) -> None:
+    from vhgen.forest.cli import add_parser
+
+    add_parser(sub)
+
+
 # Each entry adds one subcommand (its parser, arguments and function).
 SUBCOMMANDS: list[Callable[[_Sub], None]] = [
     _add_assets, _add_generate, _add_corpus, _add_avatar, _add_bench, _add_preview, _add_info,
-    _add_inspect,
+    _add_inspect, _add_forest,
 ]
 
 
@@ -330,12 +404,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def setup_logging(quiet: bool, verbose: bool) -> None:
-    """vhgen's progress and notes at INFO (the default), warnings only with ``quiet``,
-    debug logs (and other libraries' INFO) with ``verbose``."""
+    """Progress (``vhgen.progress``) at INFO by default, other vhgen logs from WARNING;
+    ``quiet``: warnings and errors only; ``verbose``: vhgen's debug logs and other
+    libraries' INFO."""
     logging.basicConfig(level=logging.INFO if verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s", force=True)
-    logging.getLogger("vhgen").setLevel(logging.DEBUG if verbose else
-                                        logging.WARNING if quiet else logging.INFO)
+    logging.getLogger("vhgen").setLevel(logging.DEBUG if verbose else logging.WARNING)
+    logging.getLogger("vhgen.progress").setLevel(logging.WARNING if quiet else
+                                                 logging.DEBUG if verbose else logging.INFO)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -36,7 +36,9 @@ class ArgType:
 
 
 def _fail(text: str, expected: str) -> argparse.ArgumentTypeError:
-    return argparse.ArgumentTypeError(f"{text!r} is not {expected}")
+    # the parser turns "argument --x: V: must be ..." into "--x V: must be ..."
+    return argparse.ArgumentTypeError(f"{text if text.strip() else repr(text)}: must be "
+                                      f"{expected}")
 
 
 def int_range(lo: int, hi: int | None = None) -> ArgType:
@@ -145,7 +147,8 @@ def existing_path() -> ArgType:
 def existing_file(*suffixes: str) -> ArgType:
     """A file that exists (with one of ``suffixes``, if given)."""
     bad = ["", "/nonexistent/vhgen/x.bvh", "/"]
-    return ArgType("file", _existing("file", suffixes), "x", bad)
+    return ArgType("file", _existing("file", suffixes),
+                   "example" + (suffixes[0] if suffixes else ".txt"), bad)
 
 
 def output_path(*suffixes: str) -> ArgType:

@@ -200,6 +200,9 @@ class JobConfig:
                 raise ConfigError(path, key, f"must be a config name or a YAML path, got {ref!r}")
             if ref.endswith((".yaml", ".yml")):
                 ref = str((path.parent / Path(ref).expanduser()).resolve())
+                if not Path(ref).is_file():
+                    kind_name = {"retarget": "map", "labels": "label scheme"}.get(key, key)
+                    raise ConfigError(path, key, f"{kind_name} file {ref} does not exist")
             refs[key] = ref
             if key != "sensor" and ref != "auto":  # the sensor is loaded (and checked) below
                 try:

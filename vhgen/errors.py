@@ -47,3 +47,7 @@ class RenderError(VhgenError):
 
 class StoreError(VhgenError):
     """A dataset store that does not follow the vhgen contract."""
+
+
+class ForestError(VhgenError):
+    """A forest file, training set or forest command argument that cannot be used."""

@@ -16,7 +16,8 @@ from vhgen.mocap.clips import (
 from vhgen.mocap.retarget import load_all_maps
 
 FIELDS = ["file", "status", "frames", "poses_read", "poses_kept", "dialect", "units_m",
-          "error"]
+          "error", "mapping", "confidence", "up", "reference_frame", "ref_error_deg",
+          "ref_error_bone", "notes"]
 
 
 def test_real_clip_loads_grounded_with_report(shared_mocap, body):

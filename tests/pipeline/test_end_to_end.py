@@ -69,7 +69,10 @@ def test_contract(smoke, shared_mocap):
     # the motions attribute uses the one clip report format (same as corpus build)
     motions = {m["file"].split("/")[-1]: m for m in g.attrs["motions"]}
     assert list(motions["02_01.bvh"]) == ["file", "status", "frames", "poses_read",
-                                          "poses_kept", "dialect", "units_m", "error"]
+                                          "poses_kept", "dialect", "units_m", "error",
+                                          "mapping", "confidence", "up", "reference_frame",
+                                          "ref_error_deg", "ref_error_bone", "notes"]
+    assert motions["02_01.bvh"]["mapping"] == "map" and motions["02_01.bvh"]["confidence"] == 1
     assert motions["broken.bvh"]["status"] == "skipped"
     assert sum(m["poses_kept"] for m in motions.values()) == summary["poses"]
     d = depth[:]

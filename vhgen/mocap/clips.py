@@ -9,9 +9,17 @@ corpus report and the dataset's ``motions`` attribute)::
     frames      frames in the file
     poses_read  poses taken from it (after frame selection)
     poses_kept  poses used (corpus: after sparsification; generate: = poses_read)
-    dialect     the retarget map that matched (``pose-table`` for a pose table)
+    dialect     the retarget map that matched (``pose-table`` for a pose table), ``auto``
+                for an automatic mapping (:mod:`vhgen.mocap.automap`)
     units_m     metres per file unit (declared, detected or overridden), null if unknown
     error       the error text, empty when ok
+    mapping     "map" (a shipped or given map names every joint) or "auto"
+    confidence  of the mapping, in [0, 1] (1 for a map)
+    up          the file's world up axis (+y, +z...)
+    reference_frame   the frame straightened into the reference pose (null: the rest)
+    ref_error_deg, ref_error_bone   worst angle between a mapped target bone and its
+                source bone in the straightened reference pose, and that bone
+    notes       conflicts settled by geometry (e.g. mirrored left/right names)
 
 A bad file never raises: it comes back as a :class:`ClipFailure` and the caller goes on.
 """
@@ -30,7 +38,7 @@ from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
 from vhgen.errors import ConfigError, VhgenError
 from vhgen.mocap.bvh import read_bvh
-from vhgen.mocap.retarget import RetargetMap, build_retargeter, detect_dialect
+from vhgen.mocap.retarget import RetargetMap, build_retargeter, detect_dialect, mapping_report
 
 BUILTIN_MOTION = "builtin:demo"
 
@@ -74,6 +82,13 @@ class ClipReport:
     dialect: str = ""
     units_m: float | None = None
     error: str = ""
+    mapping: str = ""
+    confidence: float | None = None
+    up: str = ""
+    reference_frame: int | None = None
+    ref_error_deg: float | None = None
+    ref_error_bone: str = ""
+    notes: list[str] = dataclasses.field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -141,6 +156,8 @@ def load_clip(name: str, path: str | Path, rig: Rig, maps: RetargetMap | list[Re
         rmap = detect_dialect(motion, maps) if isinstance(maps, list) else maps
         rep.dialect = rmap.name
         rt = build_retargeter(motion, rig, rmap)
+        for k, v in mapping_report(rmap, rt).items():
+            setattr(rep, k, v)
         # the root path is scaled from the skeletons' proportions; units are recorded
         rep.units_m = units_m if units_m is not None else rt.units_m
         rot, root = rt.apply(motion)

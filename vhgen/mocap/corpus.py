@@ -23,7 +23,7 @@ from vhgen.body.skinning import posed_heads
 from vhgen.errors import VhgenError
 from vhgen.mocap.clips import Clip, ClipFailure, expand_motion_paths, load_clip
 from vhgen.mocap.posetable import PoseTable, write_pose_table
-from vhgen.mocap.retarget import load_all_maps, local_rotations, world_rotations
+from vhgen.mocap.retarget import RetargetMap, load_all_maps, local_rotations, world_rotations
 from vhgen.mocap.sparsify import remove_heading, sparsify
 
 log = logging.getLogger(__name__)
@@ -58,9 +58,11 @@ def _load_rig(asset_dir: str) -> Rig:
     return load_rig(Path(asset_dir), base.vertices, base.vertex_groups)
 
 
-def _init_worker(asset_dir: str, map_dir: str | None, units_m: float | None) -> None:
+def _init_worker(asset_dir: str, map_dir: str | None, units_m: float | None,
+                 map_file: str | None = None) -> None:
     _WORKER["rig"] = _load_rig(asset_dir)
-    _WORKER["maps"] = load_all_maps(map_dir)
+    # one map for every file (--map), or the shipped maps with automatic mapping
+    _WORKER["maps"] = RetargetMap.load(map_file) if map_file else load_all_maps(map_dir)
     _WORKER["units_m"] = units_m
 
 
@@ -79,7 +81,8 @@ def _process_file(name: str, path: str, frame_step: int, allow_truncated: bool =
 def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettings,
                  asset_dir: str | Path | None = None, report: str | Path | None = None,
                  workers: int | None = None, units_m: float | None = None,
-                 strict: bool = False, map_dir: str | Path | None = None) -> dict:
+                 strict: bool = False, map_dir: str | Path | None = None,
+                 map_file: str | Path | None = None) -> dict:
     """Read every BVH file under ``inputs``, sparsify all their poses, write the table.
 
     Returns a summary; raises VhgenError if no pose is usable (or, with ``strict``, if any
@@ -88,7 +91,8 @@ def build_corpus(inputs: list[str], out: str | Path, *, settings: SparsifySettin
     asset_dir = resolve_asset_dir(asset_dir)
     files = expand_motion_paths(list(inputs))
     workers = workers or os.cpu_count() or 1
-    init = (str(asset_dir), None if map_dir is None else str(map_dir), units_m)
+    init = (str(asset_dir), None if map_dir is None else str(map_dir), units_m,
+            None if map_file is None else str(map_file))
     if workers > 1 and len(files) > 1:
         with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=init) as ex:
             results = list(ex.map(_process_file, [n for n, _ in files],

@@ -24,76 +24,39 @@ positions, float64 metres; :func:`local_rotations` gives the parent-relative for
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
-
 import numpy as np
 
 from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
-from vhgen.errors import ConfigError, RetargetError
+from vhgen.errors import RetargetError
+from vhgen.mocap.automap import auto_map
 from vhgen.mocap.bvh import Motion
-from vhgen.mocap.units import detect_units, parse_units, skeleton_height
+from vhgen.mocap.reference import bind_framed
+from vhgen.mocap.retargetmap import (
+    UP_ROTATIONS,
+    Retargeter,
+    RetargetMap,
+    load_all_maps,
+    mapping_report,
+    missing_essentials,
+    reference_error,
+    up_rotation,
+)
+from vhgen.mocap.units import detect_units, skeleton_height
 from vhgen.rotations import min_rotation
-from vhgen.yamlio import check_keys, configs_dir, find_config, load_yaml
 
-
-@dataclass(frozen=True)
-class RetargetMap:
-    """A source dialect's joint map onto a target rig, as declared in ``configs/retarget``."""
-
-    name: str
-    target_rig: str
-    units_m: float | None  # metres per file unit; None = detect from the skeleton size
-    joints: dict[str, str | None]
-    reference_directions: dict[str, tuple[float, float, float]]
-    source: str | None = None
-
-    @classmethod
-    def load(cls, name_or_path: str | Path) -> RetargetMap:
-        path = find_config("retarget", name_or_path)
-        d = load_yaml(path)
-        check_keys(d, {"name", "target_rig", "units", "joints", "reference_directions",
-                       "description"},
-                   {"name", "target_rig", "joints"}, path, "")
-        units = parse_units(d.get("units", "auto"), path, "units")
-        joints = d["joints"]
-        if not isinstance(joints, dict) or not joints:
-            raise ConfigError(path, "joints", "must be a non-empty mapping source -> target")
-        for k, v in joints.items():
-            if v is not None and not isinstance(v, str):
-                raise ConfigError(path, f"joints.{k}", f"target must be a bone name or null, "
-                                                       f"got {v!r}")
-        refs: dict[str, tuple[float, float, float]] = {}
-        for k, v in (d.get("reference_directions") or {}).items():
-            arr = np.asarray(v, dtype=np.float64) if isinstance(v, list) else None
-            if arr is None or arr.shape != (3,) or not np.isfinite(arr).all() or \
-                    np.linalg.norm(arr) == 0:
-                raise ConfigError(path, f"reference_directions.{k}",
-                                  f"must be a non-zero [x, y, z], got {v!r}")
-            refs[k] = (float(arr[0]), float(arr[1]), float(arr[2]))
-        return cls(name=str(d["name"]), target_rig=str(d["target_rig"]), units_m=units,
-                   joints=dict(joints), reference_directions=refs, source=str(path))
-
-    def check_target(self, rig: Rig) -> None:
-        """Every bone the map names must exist in the rig."""
-        named = {v for v in self.joints.values() if v} | set(self.reference_directions)
-        missing = sorted(named - set(rig.names))
-        if missing:
-            raise ConfigError(self.source, "joints",
-                              f"target bones not in rig {self.target_rig}: {', '.join(missing)}")
-
-
-def load_all_maps(folder: str | Path | None = None) -> list[RetargetMap]:
-    """Every map in ``configs/retarget`` (or ``folder``), sorted by name."""
-    folder = Path(folder) if folder is not None else configs_dir() / "retarget"
-    return [RetargetMap.load(p) for p in sorted(folder.glob("*.yaml"))]
+__all__ = ["UP_ROTATIONS", "RetargetMap", "Retargeter", "build_retargeter", "detect_dialect",
+           "load_all_maps", "local_rotations", "mapping_report", "missing_essentials",
+           "reference_error", "up_rotation", "world_rotations"]
 
 
 def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
-    """The map that knows every joint of ``motion`` and maps most of them.
+    """The shipped map that knows every joint of ``motion`` and maps most of them, if it
+    maps every essential part; otherwise an automatic map (:func:`vhgen.mocap.automap.
+    auto_map`, name ``auto``, with a confidence and an explanation per joint).
 
-    Raises RetargetError naming the joints the nearest map lacks when none fits.
+    Raises RetargetError naming what is missing when the skeleton is not a complete
+    humanoid.
     """
     best, best_key, best_unknown = None, None, None
     for m in maps:
@@ -102,55 +65,9 @@ def detect_dialect(motion: Motion, maps: list[RetargetMap]) -> RetargetMap:
         key = (len(unknown), -mapped)
         if best_key is None or key < best_key:
             best, best_key, best_unknown = m, key, unknown
-    if best is None:
-        raise RetargetError("no retarget maps to choose from")
-    if best_unknown:
-        raise RetargetError(
-            f"{motion.source}: unknown skeleton ({motion.num_joints} joints, root "
-            f"{motion.names[0]!r}); the nearest map {best.name!r} ({best.source}) lacks "
-            f"{len(best_unknown)} joints: {', '.join(best_unknown)}. Add a map to "
-            "configs/retarget/ (see the README).")
-    return best
-
-
-@dataclass(frozen=True, eq=False)
-class Retargeter:
-    """A map bound to one source skeleton and one fitted target rig."""
-
-    rig: Rig
-    source_index: np.ndarray  # (B,) source joint per target bone, -1 = none
-    source_ref: np.ndarray  # (B, 3, 3) S_b
-    target_ref: np.ndarray  # (B, 3, 3) T_b
-    scale: float  # metres per source unit, corrected for the skeletons' proportions
-    source_root: int
-    dialect: str
-    units_m: float  # metres per file unit (declared by the map or detected)
-    units_detected: bool
-
-    def apply(self, motion: Motion, frames: np.ndarray | None = None) -> tuple[np.ndarray,
-                                                                              np.ndarray]:
-        """Target poses for ``frames`` (all by default).
-
-        Returns rotations (F, B, 3, 3) world skinning rotations and root (F, 3) position of
-        the root bone's head, float64 metres, in the mesh frame.
-        """
-        g, p = motion.world_transforms()
-        if frames is not None:
-            g, p = g[frames], p[frames]
-        f = g.shape[0]
-        b = len(self.rig.names)
-        out = np.empty((f, b, 3, 3), dtype=np.float64)
-        corr = np.swapaxes(self.source_ref, -1, -2) @ self.target_ref  # S^T T
-        for k in range(b):
-            j = self.source_index[k]
-            if j >= 0:
-                out[:, k] = g[:, j] @ corr[k]
-            else:
-                par = self.rig.parents[k]
-                # no source: keep the rest orientation relative to the parent
-                out[:, k] = out[:, par] if par >= 0 else np.eye(3)
-        root = p[:, self.source_root] * self.scale
-        return out, root
+    if best is not None and not best_unknown and not missing_essentials(best, motion):
+        return best
+    return auto_map(motion)
 
 
 def _reference_rotations(parents: np.ndarray, directions: np.ndarray,
@@ -192,6 +109,8 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
                             f"{root_name!r}")
     b = len(rig.names)
     source_index = np.array([src_of.get(n, -1) for n in rig.names], dtype=np.int64)
+    if rmap.reference_frame is not None:
+        return bind_framed(motion, rig, rmap, source_index, root_name)
 
     # rest directions. Target: head -> tail. Source: joint -> the source joint of the target
     # bone whose head sits at this bone's tail (a descendant), else the End Site.
@@ -242,10 +161,13 @@ def build_retargeter(motion: Motion, rig: Rig, rmap: RetargetMap) -> Retargeter:
         ends_world = rest + np.where(np.isfinite(motion.end_sites), motion.end_sites, np.nan)
         _, units_m = detect_units(skeleton_height(rest, ends_world))
         detected = True
+    err, err_bone = reference_error(rig, source_index, source_ref @ src_dir[..., None],
+                                    target_ref @ tgt_dir[..., None])
     return Retargeter(rig=rig, source_index=source_index, source_ref=source_ref,
                       target_ref=target_ref, scale=float(scale),
                       source_root=int(source_index[rig.index(root_name)]), dialect=rmap.name,
-                      units_m=float(units_m), units_detected=detected)
+                      units_m=float(units_m), units_detected=detected, ref_error_deg=err,
+                      ref_error_bone=err_bone)
 
 
 def _ancestor_sets(parents: np.ndarray) -> list[set[int]]:

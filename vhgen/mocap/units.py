@@ -48,3 +48,13 @@ def detect_units(height: float) -> tuple[str, float]:
         raise ValueError("skeleton has no height")
     name = min(UNITS_M, key=lambda u: abs(np.log(height * UNITS_M[u] / ADULT_HEIGHT_M)))
     return name, UNITS_M[name]
+
+
+def estimate_units(height: float, tolerance: float = 1.3) -> tuple[str, float]:
+    """Like :func:`detect_units`, but when no named unit reads ``height`` within a factor
+    ``tolerance`` of an adult's height, the unit is taken from the skeleton's size alone:
+    ("scaled", 1.7 m / height). For skeletons in unusual units (e.g. ~4 cm per unit)."""
+    name, m = detect_units(height)
+    if abs(np.log(height * m / ADULT_HEIGHT_M)) <= np.log(tolerance):
+        return name, m
+    return "scaled", ADULT_HEIGHT_M / height

@@ -268,20 +268,20 @@ def inspect_store(path: str | Path) -> InspectReport:
                                    f"{_ranges(bad)}")
             hist += np.bincount(lab.reshape(-1), minlength=len(hist))[:len(hist)]
         for i in range(stop - start):
-            f = start + i
+            frame = start + i
             rep.frames_checked += int("labels" in data and "depth" in data)
-            r = row_of.get(f)
+            r = row_of.get(frame)
             if "labels" in data:
                 body = int((data["labels"][i] > 0).sum())
                 if r is not None and body_col is not None and body != int(body_col[r]):
-                    rep.defects.append(f"frame {f} ({where}): labels have {body} body pixels, "
+                    rep.defects.append(f"frame {frame} ({where}): labels have {body} body pixels, "
                                        f"manifest body_pixels says {int(body_col[r])}")
             if "depth" in data:
                 dep = data["depth"][i]
                 valid = dep > 0
                 nv = int(valid.sum())
                 if r is not None and valid_col is not None and nv != int(valid_col[r]):
-                    rep.defects.append(f"frame {f} ({where}): depth has {nv} valid pixels, "
+                    rep.defects.append(f"frame {frame} ({where}): depth has {nv} valid pixels, "
                                        f"manifest valid_pixels says {int(valid_col[r])}")
                 valid_frac.append(nv / npix)
                 if nv:

@@ -79,6 +79,14 @@ for _path, _p in _leaves(cli.build_parser()):
             CASES.append((_path, _a.option_strings[0] if _a.option_strings else _a.dest))
 
 
+def _example_files(where: Path) -> None:
+    """The files the examples of existing-file arguments name (``example.png``, ...)."""
+    for _, parser in _leaves(cli.build_parser()):
+        for a in parser._actions:
+            if isinstance(a.type, ArgType) and a.type.__name__ == "file":
+                (where / a.type.example).write_bytes(b"x")
+
+
 @pytest.fixture
 def recorder(monkeypatch):
     """build_parser with every command replaced: a case that parses records, runs nothing."""
@@ -113,7 +121,8 @@ def test_every_flag_is_covered():
 
 @pytest.mark.parametrize("path,flag", CASES, ids=[" ".join(c[0]) + " " + c[1] for c in CASES])
 def test_bad_values_fail_in_one_line(path, flag, recorder, capsys, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)  # example outputs ("out.png", ...) land here
+    monkeypatch.chdir(tmp_path)  # example inputs and outputs ("out.png", ...) live here
+    _example_files(tmp_path)
     parser = dict(_leaves(cli.build_parser()))[path]
     action = next(a for a in parser._actions if _takes_value(a)
                   and (a.option_strings[:1] == [flag] or (not a.option_strings
@@ -140,6 +149,7 @@ def test_bad_values_fail_in_one_line(path, flag, recorder, capsys, tmp_path, mon
                               if c[1].startswith("-")])
 def test_missing_value(path, flag, recorder, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    _example_files(tmp_path)
     parser = dict(_leaves(cli.build_parser()))[path]
     action = next(a for a in parser._actions if a.option_strings[:1] == [flag])
     if action.nargs in ("*", "?"):
@@ -155,9 +165,11 @@ def test_missing_value(path, flag, recorder, capsys, tmp_path, monkeypatch):
                          ids=[" ".join(p) for p, _ in _leaves(cli.build_parser())])
 def test_missing_required_and_unknown_flag(path, recorder, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    _example_files(tmp_path)
     parser = dict(_leaves(cli.build_parser()))[path]
     pos, req = _base(parser)
-    if pos or req:
+    if req or any(not a.option_strings and _takes_value(a) and a.nargs not in ("*", "?")
+                  for a in parser._actions):
         code, err = _run(list(path), capsys)
         assert code == 2 and len(err.strip().splitlines()) == 1 and "required" in err
     code, err = _run([*path, *pos, *req, "--no-such-flag"], capsys)
@@ -168,6 +180,7 @@ def test_missing_required_and_unknown_flag(path, recorder, capsys, tmp_path, mon
 def test_valid_examples_parse(recorder, capsys, tmp_path, monkeypatch):
     """The examples the fuzz builds on are accepted (else the cases above prove little)."""
     monkeypatch.chdir(tmp_path)
+    _example_files(tmp_path)
     for path, parser in _leaves(cli.build_parser()):
         pos, req = _base(parser)
         code, err = _run([*path, *pos, *req], capsys)
@@ -235,10 +248,12 @@ def test_quiet_and_verbose_set_the_log_level(recorder, capsys):
     import logging
 
     vh = logging.getLogger("vhgen")
-    for argv, level in ((["info", "."], logging.INFO), (["-q", "info", "."], logging.WARNING),
-                        (["info", ".", "--verbose"], logging.DEBUG),
-                        (["info", ".", "--quiet"], logging.WARNING)):
+    progress = logging.getLogger("vhgen.progress")
+    for argv, level, shown in ((["info", "."], logging.WARNING, logging.INFO),
+                               (["-q", "info", "."], logging.WARNING, logging.WARNING),
+                               (["info", ".", "--verbose"], logging.DEBUG, logging.DEBUG),
+                               (["info", ".", "--quiet"], logging.WARNING, logging.WARNING)):
         assert cli.main(argv) == 0
-        assert vh.level == level, argv
+        assert vh.level == level and progress.level == shown, argv
     assert cli.main(["-q", "info", ".", "-v"]) == 2
     assert "exclude each other" in capsys.readouterr().err

@@ -1,0 +1,228 @@
+"""``vhgen forest ...``: train, eval, label, export (registered by vhgen.cli).
+
+The learning-curve study is ``python benchmarks/forest_curves.py`` (it generates frames).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from vhgen import cliargs as A
+from vhgen.errors import ForestError
+
+
+def _warn(msg: str) -> None:
+    print(f"vhgen: warning: {msg}", file=sys.stderr)
+
+
+def _progress(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def load_any_forest(path: str, fx: float | None = None) -> Any:
+    """A vhgen forest file, or a PCL tree file / directory of them."""
+    from vhgen.forest.model import Forest
+    from vhgen.forest.pcl import load_pcl_forest
+
+    p = Path(path)
+    if p.is_dir() or p.suffix == ".txt":
+        return load_pcl_forest(p, fx=fx)
+    return Forest.load(p)
+
+
+def check_focal(forest: Any, fx: float | None, where: str) -> None:
+    """Warn (not fail) when the frames' focal length differs from the training one."""
+    train_fx = forest.meta.get("fx")
+    if fx is None or train_fx is None:
+        return
+    if abs(float(train_fx) - float(fx)) > 0.5:
+        _warn(f"{where}: focal length fx={fx:g} px differs from the forest's training "
+              f"fx={float(train_fx):g} px; offsets are in pixel-metres of the training camera, "
+              "expect lower accuracy (train on frames from a matching sensor preset)")
+
+
+def _params(args: argparse.Namespace) -> Any:
+    from vhgen.forest.train import TrainParams
+
+    return TrainParams(trees=args.trees, depth=args.depth,
+                       pixels_per_image=args.pixels_per_image, features=args.features,
+                       thresholds=args.thresholds, seed=args.seed,
+                       min_samples=args.min_samples, min_gain=args.min_gain,
+                       max_offset=args.max_offset, threshold_range=args.threshold_range,
+                       hist_budget_mb=args.hist_budget_mb)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from vhgen.forest.driver import train_forest
+
+    params = _params(args)
+    params.check()
+    if args.workers is not None and args.workers < 1:
+        raise ForestError(f"--workers {args.workers}: must be >= 1")
+    forest = train_forest(args.stores, params, max_frames=args.max_frames,
+                          workers=args.workers, address=args.address,
+                          progress=None if args.quiet else _progress)
+    path = forest.save(args.out)
+    nodes = [t["nodes"] for t in forest.meta["trees"]]
+    print(f"wrote {path}: {forest.num_trees} trees ({', '.join(map(str, nodes))} nodes), "
+          f"{forest.meta['frames']} frames, {forest.meta['train_seconds']:.1f} s")
+    return 0
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from vhgen.forest.data import check_compatible, store_info
+    from vhgen.forest.evaluate import evaluate, table
+
+    forest = load_any_forest(args.forest, fx=args.fx)
+    infos = [store_info(s) for s in args.stores]
+    ref = check_compatible(infos, "test")
+    names = list(forest.meta.get("label_names", []))
+    if list(ref.label_names) != names:
+        raise ForestError(f"{ref.path}: label scheme mismatch: store has "
+                          f"{ref.label_scheme!r} ({len(ref.label_names)} parts), the forest "
+                          f"was trained on {forest.meta.get('label_scheme')!r} "
+                          f"({len(names)} parts)")
+    check_focal(forest, ref.fx, ref.path)
+    res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out)
+    print(table(res))
+    if res["frames_per_second"]:
+        print(f"inference: {res['frames_per_second']:.1f} frames/s over {res['frames']} "
+              "frames (all threads)")
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps({**res, "forest": str(args.forest),
+                                               "stores": args.stores}, indent=1))
+    if args.out:
+        print(f"wrote {args.out}/confusion.png, {args.out}/contact_sheet.png")
+    return 0
+
+
+def read_depth_png(path: str) -> Any:
+    """A 16-bit single-channel PNG of millimetres -> (H, W) uint16; ForestError otherwise."""
+    import numpy as np
+    from PIL import Image, UnidentifiedImageError
+
+    p = Path(path)
+    if not p.is_file():
+        raise ForestError(f"{p}: no such depth image")
+    try:
+        with Image.open(p) as im:
+            mode = im.mode
+            arr = np.array(im)
+    except (UnidentifiedImageError, OSError) as e:
+        raise ForestError(f"{p}: not an image ({e})") from None
+    if arr.ndim != 2 or mode not in ("I;16", "I;16B", "I;16L", "I"):
+        raise ForestError(f"{p}: expected a single-channel 16-bit depth PNG in millimetres, "
+                          f"got mode {mode} shape {arr.shape}")
+    if arr.min(initial=0) < 0 or arr.max(initial=0) > 65535:
+        raise ForestError(f"{p}: depth values outside 0..65535 mm")
+    return arr.astype(np.uint16)
+
+
+def _cmd_label(args: argparse.Namespace) -> int:
+    from PIL import Image
+
+    from vhgen.forest.evaluate import palette_for
+    from vhgen.forest.model import Predictor
+
+    forest = load_any_forest(args.forest)
+    depth = read_depth_png(args.depth)
+    check_focal(forest, args.fx, args.depth)
+    labels = Predictor(forest).predict(depth)
+    img = Image.fromarray(labels, mode="P")
+    pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
+    img.putpalette(pal.ravel().tolist())
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    img.save(out)
+    print(f"wrote {out}: {labels.shape[1]}x{labels.shape[0]} labels (pixel value = class, "
+          f"0 = background), {int((labels > 0).sum())} body pixels")
+    return 0
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from vhgen.forest.model import Forest
+    from vhgen.forest.pcl import export_pcl
+
+    forest = Forest.load(args.forest)
+    paths = export_pcl(forest, args.output)
+    fx = forest.meta.get("fx")
+    print(f"wrote {len(paths)} PCL tree files to {args.output} (trained at fx={fx} px; PCL's "
+          "people app reads OpenNI depth registered to RGB, f=525 px)")
+    return 0
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Register ``forest`` and its subcommands on the top-level subparsers."""
+    fp = subparsers.add_parser("forest", help="train/evaluate/export body-part forests")
+    fsub = fp.add_subparsers(dest="forest_cmd", required=True)
+
+    t = fsub.add_parser("train", help="train a forest on one or more stores")
+    t.add_argument("stores", nargs="+", type=A.text("store"),
+                   help="dataset stores (vhgen generate output)")
+    t.add_argument("--out", required=True, type=A.output_path(".npz"), help="forest file (.npz)")
+    t.add_argument("--trees", type=A.int_range(1, 1000), default=3,
+                   help="number of trees (default 3)")
+    t.add_argument("--depth", type=A.int_range(1, 64), default=20,
+                   help="maximum tree depth (default 20)")
+    t.add_argument("--pixels-per-image", type=A.int_range(1), default=2000,
+                   help="training pixels per image, balanced over parts (default 2000)")
+    t.add_argument("--features", type=A.int_range(1), default=2000,
+                   help="candidate offset pairs per node (default 2000)")
+    t.add_argument("--thresholds", type=A.int_range(1), default=50,
+                   help="candidate thresholds per feature (default 50)")
+    t.add_argument("--seed", type=A.int_range(0, 2**63 - 1), default=0,
+                   help="seed of sampling and candidates")
+    t.add_argument("--min-samples", type=A.int_range(1), default=32,
+                   help="a node with fewer samples becomes a leaf (default 32)")
+    t.add_argument("--min-gain", type=A.float_range(0), default=1e-3,
+                   help="a node whose best information gain (bits) is lower becomes a leaf")
+    t.add_argument("--max-offset", type=A.int_range(1), default=130,
+                   help="largest probe offset, pixel-metres (default 130)")
+    t.add_argument("--threshold-range", type=A.int_range(1), default=1000,
+                   help="thresholds drawn in [-R, R] mm (default 1000)")
+    t.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
+    t.add_argument("--workers", type=A.int_range(1, 4096),
+                   help="Ray workers holding disjoint image sets (default: in process)")
+    t.add_argument("--address", type=A.text("address"),
+                   help="existing Ray cluster (e.g. auto or ray://host:10001)")
+    t.add_argument("--hist-budget-mb", type=A.int_range(1), default=256,
+                   help="histogram memory per chunk of nodes and worker (default 256)")
+    t.add_argument("--quiet", action="store_true", help="no per-level progress")
+    t.set_defaults(func=_cmd_train)
+
+    e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores")
+    e.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
+    e.add_argument("stores", nargs="+", type=A.text("store"), help="test stores")
+    e.add_argument("--json", type=A.output_path(".json"), help="write the scores here")
+    e.add_argument("--out", type=A.output_path(),
+                   help="folder for confusion.png and contact_sheet.png")
+    e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
+    e.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                   help="training focal length of PCL trees (for the "
+                                            "focal-length check)")
+    e.set_defaults(func=_cmd_eval)
+
+    lb = fsub.add_parser("label", help="label a 16-bit millimetre depth PNG")
+    lb.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
+    lb.add_argument("depth", type=A.existing_file(".png"),
+                    help="16-bit PNG, millimetres, 0 = no measurement")
+    lb.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
+                    help="label PNG (palette; value = class)")
+    lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                    help="focal length of the depth camera (px): warn "
+                                             "if it differs from the training one")
+    lb.set_defaults(func=_cmd_label)
+
+    x = fsub.add_parser("export", help="write the forest in another format")
+    x.add_argument("forest", type=A.existing_file(".npz"), help="forest .npz")
+    x.add_argument("--format", choices=["pcl"], default="pcl",
+                   help="pcl: one PCL gpu/people text tree per file")
+    x.add_argument("-o", "--output", required=True, type=A.output_path(), help="output folder")
+    x.set_defaults(func=_cmd_export)
+
+    return fp

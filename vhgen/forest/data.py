@@ -1,0 +1,121 @@
+"""Which frames a forest trains or is evaluated on: store checks and frame selection.
+
+Frames are addressed globally: the stores in the order given, frames in store order,
+``global id`` counting across stores. Everything seeded derives from global ids, so the
+same stores and seed select and sample the same pixels on any number of workers.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vhgen.errors import ForestError
+
+
+@dataclass(frozen=True)
+class StoreInfo:
+    """One dataset store as the forest sees it."""
+
+    path: str
+    num_frames: int
+    label_scheme: str
+    label_names: tuple[str, ...]
+    fx: float
+    fy: float
+    sensor: str
+
+
+def store_info(path: str | Path) -> StoreInfo:
+    """Check that ``path`` is a vhgen store with depth and labels; one-line ForestError if not."""
+    import zarr
+
+    p = Path(path)
+    if not p.exists():
+        raise ForestError(f"{p}: no such store")
+    if not (p / "zarr.json").is_file():
+        raise ForestError(f"{p}: not a Zarr v3 group (no zarr.json); expected a store written "
+                          "by `vhgen generate`")
+    for name in ("depth", "labels"):
+        if not (p / name / "zarr.json").is_file():
+            raise ForestError(f"{p}: store has no `{name}` array; the forest needs depth and "
+                              "per-pixel labels")
+    g = zarr.open_group(str(p), mode="r", zarr_format=3)
+    attrs = json.loads(json.dumps(dict(g.attrs)))
+    names = attrs.get("label_names")
+    if not names:
+        raise ForestError(f"{p}: store has no `label_names` attribute")
+    sensor = attrs.get("sensor") or {}
+    intr = sensor.get("intrinsics") or {}
+    if "fx" not in intr:
+        raise ForestError(f"{p}: store attribute sensor.intrinsics has no fx")
+    depth: Any = g["depth"]
+    labels: Any = g["labels"]
+    if depth.shape != labels.shape or depth.ndim != 3:
+        raise ForestError(f"{p}: depth {depth.shape} and labels {labels.shape} differ")
+    return StoreInfo(str(p), int(depth.shape[0]), str(attrs.get("label_scheme", "")),
+                     tuple(names), float(intr["fx"]), float(intr.get("fy", intr["fx"])),
+                     str(sensor.get("name", "")))
+
+
+def check_compatible(infos: list[StoreInfo], what: str = "training") -> StoreInfo:
+    """All stores share label scheme, names and focal length; returns the first."""
+    if not infos:
+        raise ForestError(f"no {what} store given")
+    ref = infos[0]
+    for s in infos[1:]:
+        if s.label_names != ref.label_names or s.label_scheme != ref.label_scheme:
+            raise ForestError(f"{s.path}: label scheme {s.label_scheme!r} "
+                              f"({len(s.label_names)} parts) differs from {ref.path}'s "
+                              f"{ref.label_scheme!r} ({len(ref.label_names)} parts)")
+        if abs(s.fx - ref.fx) > 1e-6 or abs(s.fy - ref.fy) > 1e-6:
+            raise ForestError(f"{s.path}: focal length fx={s.fx} differs from {ref.path}'s "
+                              f"fx={ref.fx}; pixel offsets only transfer at one focal length")
+    return ref
+
+
+def select_frames(infos: list[StoreInfo], max_frames: int | None,
+                  seed: int) -> list[tuple[str, int, int]]:
+    """(store path, frame, global id) of the frames used, in global-id order.
+
+    ``max_frames``: a seeded random subset of that size (nested: a smaller size with the same
+    seed is a subset of a larger one), else every frame.
+    """
+    table = [(s.path, f) for s in infos for f in range(s.num_frames)]
+    ids = np.arange(len(table))
+    if max_frames is not None and max_frames < len(table):
+        perm = np.random.default_rng(np.random.SeedSequence([seed, 0x5E1EC7])).permutation(
+            len(table))
+        ids = np.sort(perm[:max_frames])
+    return [(table[i][0], table[i][1], int(i)) for i in ids]
+
+
+def read_frames(frames: list[tuple[str, int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Depth (N, H, W) uint16 mm and labels (N, H, W) uint8 of the selected frames."""
+    import zarr
+
+    by_store: dict[str, list[int]] = {}
+    for path, f, _ in frames:
+        by_store.setdefault(path, []).append(f)
+    depth_parts, label_parts = [], []
+    for path, fs in by_store.items():
+        g = zarr.open_group(path, mode="r", zarr_format=3)
+        gd: Any = g["depth"]
+        gl: Any = g["labels"]
+        idx = np.asarray(fs)
+        # contiguous runs read much faster than fancy indexing on sharded arrays
+        if len(idx) and np.all(np.diff(idx) == 1):
+            sl = slice(int(idx[0]), int(idx[-1]) + 1)
+            depth_parts.append(gd[sl])
+            label_parts.append(gl[sl])
+        else:
+            depth_parts.append(np.stack([gd[int(i)] for i in idx]) if len(idx) else
+                               np.zeros((0,) + gd.shape[1:], np.uint16))
+            label_parts.append(np.stack([gl[int(i)] for i in idx]) if len(idx) else
+                               np.zeros((0,) + gl.shape[1:], np.uint8))
+    return (np.concatenate(depth_parts).astype(np.uint16, copy=False),
+            np.concatenate(label_parts).astype(np.uint8, copy=False))
