@@ -20,6 +20,7 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -75,7 +76,8 @@ def main() -> None:
     from vhgen.body.skinning import bone_matrices
     from vhgen.pipeline.frames import sample_camera
 
-    b = gen._body(0)
+    b = gen.describer.body(0)
+    gen.renderer.set_mesh(b.vertices, b.faces, b.joints, b.weights, b.face_labels, b.num_bones)
     gen.renderer.render(np.broadcast_to(np.eye(4), (b.num_bones, 4, 4)))  # warm up
     depths = []
     t = time.perf_counter()
@@ -83,7 +85,7 @@ def main() -> None:
         p = int(plan.pose_index[f])
         cam = sample_camera(np.random.default_rng(int(plan.seeds[f])), cfg.camera)
         mats = bone_matrices(b.rig, poses.rotations[p], poses.roots[p] * np.array([0, 1, 0]))
-        d, _ = gen.renderer.render(cam["world_to_camera"] @ mats)
+        d, _ = gen.renderer.render(cam.world_to_camera @ mats)
         depths.append(d)
     rows.append(("skin+render (1 process)", n, time.perf_counter() - t))
 
@@ -106,13 +108,16 @@ def main() -> None:
         create_store(store, num_frames=k * 4, height=s.intrinsics.height,
                      width=s.intrinsics.width, frames_per_shard=k,
                      compression_level=cfg.compression_level, attrs={})
-        dep = np.stack([r[0] for r in out_rows])
-        lab = np.stack([r[1] for r in out_rows])
+        dep = np.stack([r.depth_mm for r in out_rows])
+        lab = np.stack([r.labels for r in out_rows])
+        ids = {"instances": np.stack([r.instances for r in out_rows]),
+               "classes": np.stack([r.classes for r in out_rows])}
         t = time.perf_counter()
         for shard in range(4):
-            write_shard(store, shard, k, dep, lab, None)
-            meta = [dict(r[2], frame=shard * k + i, shard=shard) for i, r in enumerate(out_rows)]
-            write_part(store, shard, meta, len(meta[0]["joints_cam"]) // 3)
+            write_shard(store, shard, k, dep, lab, None, extra=ids)
+            meta = [replace(r.record, frame=shard * k + i, shard=shard)
+                    for i, r in enumerate(out_rows)]
+            write_part(store, shard, meta, len(meta[0].joints_cam) // 3)
         rows.append(("write (zarr shard + manifest)", 4 * k, time.perf_counter() - t))
         mb = sum(p.stat().st_size for p in store.rglob("*") if p.is_file()) / 1e6
     gen.close()
@@ -132,8 +137,8 @@ def main() -> None:
     print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
     for name, count, sec in rows:
         print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
-    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth+labels, zstd "
-          f"{cfg.compression_level})")
+    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
+          f"instances, classes; zstd {cfg.compression_level})")
 
 
 if __name__ == "__main__":

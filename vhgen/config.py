@@ -13,6 +13,12 @@ from typing import Any
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
+from vhgen.scene.config import (
+    CAMERA_CLEARANCE_M,
+    PERSON_CLEARANCE_M,
+    RoomConfig,
+    SceneConfig,
+)
 from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, load_yaml
 
@@ -105,6 +111,7 @@ class JobConfig:
     backend: str
     skinning: str
     num_workers: int
+    scene: SceneConfig = field(default_factory=SceneConfig)
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
 
@@ -113,7 +120,7 @@ class JobConfig:
         path = Path(path)
         d = load_yaml(path)
         top = {"name", "seed", "motions", "retarget", "labels", "sensor", "assets", "poses",
-               "avatars", "camera", "output", "render", "num_workers", "description"}
+               "avatars", "camera", "output", "render", "num_workers", "description", "scene"}
         check_keys(d, top, {"name", "motions"}, path, "")
         motions = d["motions"]
         if isinstance(motions, str):
@@ -166,6 +173,7 @@ class JobConfig:
             _range(ca, "look_at_height_m", path, "camera.", cd.look_at_height_m, lo=-10, hi=10),
             _num(ca, "near_m", path, "camera.", lo=1e-3, default=cd.near_m),
             _num(ca, "far_m", path, "camera.", lo=0.5, default=cd.far_m))
+        scene = _scene(d.get("scene") or {}, path, camera)
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}
@@ -200,4 +208,38 @@ class JobConfig:
                                   integer=True, default=16),
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True, default=3),
-            backend=backend, skinning=skinning, num_workers=num_workers, source=str(path))
+            backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
+            source=str(path))
+
+
+def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
+    """The ``scene:`` section; checks at load time that a room can hold the person and the
+    camera at its farthest distance."""
+    check_keys(d, {"floor", "room"}, set(), src, "scene.")
+    floor = d.get("floor", False)
+    if not isinstance(floor, bool):
+        raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
+    room = None
+    r = d.get("room")
+    if r is not None and r is not False:
+        if r is True:
+            r = {}
+        if not isinstance(r, dict):
+            raise ConfigError(src, "scene.room", f"must be a mapping (or false), got {r!r}")
+        rd = RoomConfig()
+        check_keys(r, {"width_m", "depth_m", "height_m", "yaw_deg"}, set(), src, "scene.room.")
+        room = RoomConfig(
+            _range(r, "width_m", src, "scene.room.", rd.width_m, lo=0.5, hi=100),
+            _range(r, "depth_m", src, "scene.room.", rd.depth_m, lo=0.5, hi=100),
+            _range(r, "height_m", src, "scene.room.", rd.height_m, lo=1.0, hi=20),
+            _range(r, "yaw_deg", src, "scene.room.", rd.yaw_deg, lo=-90, hi=90))
+        need_w = 2 * PERSON_CLEARANCE_M
+        need_d = camera.distance_m[1] + PERSON_CLEARANCE_M + CAMERA_CLEARANCE_M
+        if room.width_m[1] < need_w:
+            raise ConfigError(src, "scene.room.width_m", f"room too small: at most "
+                              f"{room.width_m[1]} m wide, a person needs {need_w:.1f} m")
+        if room.depth_m[1] < need_d:
+            raise ConfigError(src, "scene.room.depth_m", f"room too small: at most "
+                              f"{room.depth_m[1]} m deep, but camera.distance_m reaches "
+                              f"{camera.distance_m[1]} m (needs {need_d:.1f} m with clearances)")
+    return SceneConfig(floor=floor, room=room)

@@ -1,0 +1,64 @@
+"""The frozen description of one frame: everything the render step and the sensor need,
+built from the plan before any GL call (see :mod:`vhgen.pipeline.describe`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from vhgen.scene.geometry import StaticMesh
+from vhgen.scene.room import Room
+
+
+@dataclass(frozen=True, eq=False)
+class Person:
+    """One person in a frame: ``instance`` (1..255, the value in ``instances``), the avatar
+    and pose, ``bones`` (B, 4, 4) float64 world transforms of the posed rig, ``joints``
+    (B, 3) float64 world bone heads, and ``offset`` (3,) added to the retargeted root."""
+
+    instance: int
+    avatar_id: int
+    pose_index: int
+    bones: np.ndarray
+    joints: np.ndarray
+    offset: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class CameraPose:
+    """world_to_camera (4, 4) float64 (OpenCV axes: x right, y down, z forward) and the
+    sampled mount: yaw about the subject (deg), distance and height (m)."""
+
+    world_to_camera: np.ndarray
+    yaw_deg: float
+    distance_m: float
+    height_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class FrameDescription:
+    """One frame, pure: people, static geometry, camera, and the seeds.
+
+    ``noise_state`` is the bit-generator state the sensor's noise starts from. It is the
+    frame stream right after the camera's draws, the order vhgen has always used, so
+    person-only frames are byte-identical to earlier versions; everything new a scene
+    samples (room, placements) comes from a second stream spawned from ``seed``, so scene
+    options never shift the sensor noise of a frame."""
+
+    frame: int
+    seed: int
+    camera: CameraPose
+    people: tuple[Person, ...]
+    static: tuple[StaticMesh, ...]
+    room: Room | None
+    noise_state: Mapping[str, Any]
+
+    def noise_rng(self) -> np.random.Generator:
+        """A fresh generator at :attr:`noise_state` (the same numbers every call)."""
+        bg = np.random.PCG64()
+        # numpy types the state as a TypedDict; ours is the same mapping, copied
+        bg.state = dict(self.noise_state)  # type: ignore[assignment]
+        return np.random.Generator(bg)
