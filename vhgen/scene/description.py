@@ -3,8 +3,8 @@ built from the plan before any GL call (see :mod:`vhgen.pipeline.describe`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
