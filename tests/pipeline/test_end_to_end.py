@@ -46,7 +46,7 @@ def smoke(tmp_path_factory, shared_mocap, asset_dir):
 
 def _store_files(path: Path) -> dict[str, bytes]:
     return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*"))
-            if p.is_file() and ("depth" in p.parts or "labels" in p.parts)}
+            if p.is_file() and {"depth", "labels", "instances", "classes"} & set(p.parts)}
 
 
 def test_contract(smoke, shared_mocap):
@@ -74,6 +74,13 @@ def test_contract(smoke, shared_mocap):
     assert sum(m["poses_kept"] for m in motions.values()) == summary["poses"]
     d = depth[:]
     lab = labels[:]
+    # scene arrays, read with plain zarr: one person, no geometry in this config
+    inst, cls = g["instances"][:], g["classes"][:]
+    assert inst.shape == cls.shape == (10, 480, 640)
+    assert inst.dtype == cls.dtype == np.uint8
+    assert g.attrs["class_names"][:5] == ["background", "floor", "wall", "prop", "person"]
+    person = g.attrs["class_names"].index("person")
+    assert ((inst == 1) == (lab > 0)).all() and ((cls == person) == (lab > 0)).all()
     for f in range(10):
         body = lab[f] > 0
         assert body.sum() > 5000, f  # a person fills part of every frame
@@ -102,6 +109,8 @@ def test_contract(smoke, shared_mocap):
     raw = g["raw"][:]
     assert raw.dtype == np.uint16 and ((raw == 2047) == (d == 0)).all()
     assert "scale" in json.loads(row["avatar_params"])
+    assert row["num_people"] == 1 and json.loads(row["scene"]) is None
+    assert man.schema.field("num_people").type == "int32"
     joints = np.asarray(row["joints_cam"], np.float32).reshape(31, 3)
     assert 1.5 < joints[0, 2] < 4.5  # hips in front of the camera
 

@@ -9,7 +9,7 @@ import numpy as np
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import Body, build_body
 from vhgen.body.shape import Shape
-from vhgen.body.skinning import bone_matrices, posed_heads
+from vhgen.body.skinning import bone_matrices, posed_heads, skin_vertices
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
 from vhgen.scene.description import CameraPose, FrameDescription, Person
@@ -17,6 +17,7 @@ from vhgen.scene.room import sample_room, static_geometry
 
 # the scene stream: room and placements, spawned from the frame seed (see FrameDescription)
 _SCENE_STREAM = 0x5CE4E
+FLOOR_SNAP_M = 0.10  # a lowest point closer than this to the floor is put on it
 
 
 def sample_camera(rng: np.random.Generator, cfg: CameraConfig) -> CameraPose:
@@ -61,13 +62,22 @@ class FrameDescriber:
                 scale=p["scale"], clothing=tuple(p["clothing"]))
         return self._bodies[avatar_id]
 
-    def person(self, instance: int, avatar_id: int, pose: int) -> Person:
-        """A person standing with its root above the world origin (height and heading
-        kept)."""
+    def person(self, instance: int, avatar_id: int, pose: int, ground: bool = False) -> Person:
+        """A person with its root above the world origin (height and heading kept).
+
+        ``ground`` (scenes with a floor): a lowest skinned vertex less than
+        :data:`FLOOR_SNAP_M` above the floor, or below it, is moved onto y = 0, so feet
+        touch the floor despite the few centimetres retargeting leaves; a higher one
+        (a jump) stays in the air. The shift is part of ``offset``."""
         body = self.body(avatar_id)
         rot = self.rotations[pose]
         root = self.roots[pose] * (body.hip_drop / self._base_hip_drop)
         offset = np.array([-root[0], 0.0, -root[2]])
+        if ground:
+            lowest = skin_vertices(body.vertices, body.joints, body.weights,
+                                   bone_matrices(body.rig, rot, root + offset))[:, 1].min()
+            if lowest < FLOOR_SNAP_M:
+                offset[1] = -lowest
         root = root + offset
         return Person(instance, avatar_id, pose, bone_matrices(body.rig, rot, root),
                       posed_heads(body.rig, rot, root), offset)
@@ -78,7 +88,7 @@ class FrameDescriber:
         seed = int(self.plan["seeds"][frame])
         rng = np.random.default_rng(seed)
         person = self.person(1, int(self.plan["avatar_id"][frame]),
-                             int(self.plan["pose_index"][frame]))
+                             int(self.plan["pose_index"][frame]), ground=self.cfg.scene.floor)
         cam = sample_camera(rng, self.cfg.camera)
         room = None
         sc = self.cfg.scene

@@ -95,6 +95,9 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     if raw is not None:
         root["raw"][start:start + n] = raw
     for name, arr in (extra or {}).items():
+        if name not in root:
+            raise StoreError(f"{path}: no {name!r} array (the store was made by an older "
+                             "vhgen); generate it again with --overwrite")
         if arr.shape != depth.shape or arr.dtype != np.uint8:
             raise StoreError(f"shard {shard}: {name} {arr.shape} {arr.dtype}, expected "
                              f"{depth.shape} uint8")
