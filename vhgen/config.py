@@ -10,15 +10,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
 from vhgen.scene.config import (
     CAMERA_CLEARANCE_M,
     PERSON_CLEARANCE_M,
+    PropsConfig,
     RoomConfig,
     SceneConfig,
 )
+from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, load_yaml
 
@@ -212,13 +216,54 @@ class JobConfig:
             source=str(path))
 
 
+def _int_range(d: dict, key: str, src, prefix: str, default: tuple[int, int], lo: int,
+               hi: int) -> tuple[int, int]:
+    a, b = _range(d, key, src, prefix, (float(default[0]), float(default[1])), lo=lo, hi=hi)
+    if a != int(a) or b != int(b):
+        raise ConfigError(src, prefix + key, f"must be integers, got {d[key]!r}")
+    return int(a), int(b)
+
+
+def _props(d: Any, src) -> PropsConfig:
+    if d is True:
+        d = {}
+    check_keys(d, {"count", "kinds", "meshes", "occlusion"}, set(), src, "scene.props.")
+    pd = PropsConfig()
+    kinds = d.get("kinds", list(pd.kinds))
+    if not isinstance(kinds, list) or not all(k in PARAMETRIC for k in kinds):
+        raise ConfigError(src, "scene.props.kinds", f"must be a list of {', '.join(PARAMETRIC)}"
+                          f", got {kinds!r}")
+    meshes = []
+    for i, m in enumerate(d.get("meshes") or []):
+        field = f"scene.props.meshes[{i}]"
+        if isinstance(m, str):
+            m = {"path": m}
+        if not isinstance(m, dict):
+            raise ConfigError(src, field, f"must be a path or {{path, scale}}, got {m!r}")
+        check_keys(m, {"path", "scale"}, {"path"}, src, field + ".")
+        scale = _num(m, "scale", src, field + ".", lo=1e-4, hi=1e4, default=1.0)
+        path = Path(str(m["path"])).expanduser()
+        if not path.is_absolute() and src is not None:
+            path = Path(src).parent / path
+        meshes.append(load_mesh(path, scale, src, field + ".path"))
+    if not kinds and not meshes:
+        raise ConfigError(src, "scene.props.kinds", "no kinds and no meshes: nothing to place")
+    return PropsConfig(_int_range(d, "count", src, "scene.props.", pd.count, 0, 64),
+                       tuple(kinds), tuple(meshes),
+                       _range(d, "occlusion", src, "scene.props.", pd.occlusion, lo=0, hi=1))
+
+
 def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
-    """The ``scene:`` section; checks at load time that a room can hold the person and the
-    camera at its farthest distance."""
-    check_keys(d, {"floor", "room"}, set(), src, "scene.")
+    """The ``scene:`` section; checks at load time that a room can hold the people, the
+    props and the camera at its farthest distance."""
+    check_keys(d, {"floor", "room", "people", "props"}, set(), src, "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
+    people = _int_range(d, "people", src, "scene.", (1, 1), 1, 32)
+    props = None
+    if d.get("props") not in (None, False):
+        props = _props(d["props"], src)
     room = None
     r = d.get("room")
     if r is not None and r is not False:
@@ -242,4 +287,13 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.room.depth_m", f"room too small: at most "
                               f"{room.depth_m[1]} m deep, but camera.distance_m reaches "
                               f"{camera.distance_m[1]} m (needs {need_d:.1f} m with clearances)")
-    return SceneConfig(floor=floor, room=room)
+        # footprints asked for must fit in half the largest room's floor, or most frames
+        # would drop people or props
+        n_props = props.count[1] if props is not None else 0
+        need_area = np.pi * (people[1] * PERSON_CLEARANCE_M ** 2 + n_props * 0.6 ** 2)
+        area = room.width_m[1] * room.depth_m[1]
+        if area < 2 * need_area:
+            raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
+                              f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
+                              f"about {2 * need_area:.1f} m^2")
+    return SceneConfig(floor=floor, room=room, people=people, props=props)

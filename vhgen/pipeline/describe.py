@@ -12,7 +12,17 @@ from vhgen.body.shape import Shape
 from vhgen.body.skinning import bone_matrices, posed_heads, skin_vertices
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
-from vhgen.scene.description import CameraPose, FrameDescription, Person
+from vhgen.scene.config import CAMERA_CLEARANCE_M
+from vhgen.scene.description import CameraPose, FrameDescription, Person, PlacedProp
+from vhgen.scene.geometry import PROP, StaticMesh
+from vhgen.scene.placement import (
+    Disc,
+    place_anywhere,
+    place_between,
+    place_in_view,
+    yaw_transform,
+)
+from vhgen.scene.props import parametric
 from vhgen.scene.room import sample_room, static_geometry
 
 # the scene stream: room and placements, spawned from the frame seed (see FrameDescription)
@@ -62,39 +72,106 @@ class FrameDescriber:
                 scale=p["scale"], clothing=tuple(p["clothing"]))
         return self._bodies[avatar_id]
 
-    def person(self, instance: int, avatar_id: int, pose: int, ground: bool = False) -> Person:
+    def person(self, instance: int, avatar_id: int, pose: int, ground: bool = False,
+               footprint: bool = False) -> Person:
         """A person with its root above the world origin (height and heading kept).
 
         ``ground`` (scenes with a floor): a lowest skinned vertex less than
         :data:`FLOOR_SNAP_M` above the floor, or below it, is moved onto y = 0, so feet
         touch the floor despite the few centimetres retargeting leaves; a higher one
-        (a jump) stays in the air. The shift is part of ``offset``."""
+        (a jump) stays in the air. The shift is part of ``offset``. ``footprint``: also
+        bound the skinned body's floor footprint by a circle (for placement)."""
         body = self.body(avatar_id)
         rot = self.rotations[pose]
         root = self.roots[pose] * (body.hip_drop / self._base_hip_drop)
         offset = np.array([-root[0], 0.0, -root[2]])
-        if ground:
-            lowest = skin_vertices(body.vertices, body.joints, body.weights,
-                                   bone_matrices(body.rig, rot, root + offset))[:, 1].min()
-            if lowest < FLOOR_SNAP_M:
+        disc = None
+        if ground or footprint:
+            verts = skin_vertices(body.vertices, body.joints, body.weights,
+                                  bone_matrices(body.rig, rot, root + offset))
+            lowest = verts[:, 1].min()
+            if ground and lowest < FLOOR_SNAP_M:
                 offset[1] = -lowest
+            xz = verts[:, [0, 2]]
+            c = (xz.min(0) + xz.max(0)) / 2
+            disc = Disc(float(c[0]), float(c[1]), float(np.hypot(*(xz - c).T).max()))
         root = root + offset
         return Person(instance, avatar_id, pose, bone_matrices(body.rig, rot, root),
-                      posed_heads(body.rig, rot, root), offset)
+                      posed_heads(body.rig, rot, root), offset, footprint=disc)
 
     def describe(self, frame: int) -> FrameDescription:
-        """The frame's description: its person, camera (first draws of the frame stream),
-        static geometry (scene stream) and the sensor noise state."""
+        """The frame's description. The first person and the camera come from the frame
+        stream exactly as vhgen always drew them; room, further people and props from the
+        scene stream (see :class:`FrameDescription`)."""
         seed = int(self.plan["seeds"][frame])
         rng = np.random.default_rng(seed)
-        person = self.person(1, int(self.plan["avatar_id"][frame]),
-                             int(self.plan["pose_index"][frame]), ground=self.cfg.scene.floor)
-        cam = sample_camera(rng, self.cfg.camera)
-        room = None
         sc = self.cfg.scene
-        if sc.room is not None:
-            scene_rng = np.random.default_rng(np.random.SeedSequence([seed, _SCENE_STREAM]))
-            eye = -cam.world_to_camera[:3, :3].T @ cam.world_to_camera[:3, 3]
-            room = sample_room(scene_rng, sc.room, eye[[0, 2]], cam.yaw_deg)
-        return FrameDescription(frame, seed, cam, (person,), static_geometry(sc, room), room,
-                                rng.bit_generator.state)
+        person = self.person(1, int(self.plan["avatar_id"][frame]),
+                             int(self.plan["pose_index"][frame]), ground=sc.floor,
+                             footprint=not sc.is_person_only)
+        cam = sample_camera(rng, self.cfg.camera)
+        noise_state = rng.bit_generator.state
+        if sc.is_person_only:
+            return FrameDescription(frame, seed, cam, (person,), (), None, noise_state)
+        srng = np.random.default_rng(np.random.SeedSequence([seed, _SCENE_STREAM]))
+        w2c = cam.world_to_camera
+        eye = (-w2c[:3, :3].T @ w2c[:3, 3])[[0, 2]]
+        forward = w2c[2, :3][[0, 2]]
+        forward = forward / np.linalg.norm(forward)
+        room = sample_room(srng, sc.room, eye, cam.yaw_deg) if sc.room is not None else None
+        people = [person]
+        assert person.footprint is not None
+        discs = [person.footprint, Disc(float(eye[0]), float(eye[1]), CAMERA_CLEARANCE_M)]
+        dropped = {"people": 0, "props": 0}
+        intr = self.cfg.sensor.intrinsics
+        half_fov = float(np.arctan2(intr.width / 2, intr.fx))
+        reach = (1.5, self.cfg.camera.distance_m[1] + 1.5)
+        n_people = int(srng.integers(sc.people[0], sc.people[1] + 1))
+        for k in range(2, n_people + 1):
+            a = int(srng.integers(len(self.avatars)))
+            pose = int(srng.integers(len(self.rotations)))
+            heading = float(srng.uniform(-np.pi, np.pi))
+            local = self.person(k, a, pose, ground=sc.floor, footprint=True)
+            assert local.footprint is not None
+            r = local.footprint.r
+            spot = place_in_view(srng, eye, forward, half_fov, reach, r, discs, room)
+            if spot is None:
+                dropped["people"] += 1
+                continue
+            # rotate about the footprint's centre, then move that centre onto the spot
+            c = np.array([local.footprint.x, 0.0, local.footprint.z])
+            t = yaw_transform(heading, spot.x, spot.z) @ yaw_transform(0.0, -c[0], -c[2])
+            people.append(Person(len(people) + 1, a, pose, t @ local.bones,
+                                 local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot))
+            discs.append(spot)
+        props: list[PlacedProp] = []
+        static = list(static_geometry(sc, room))
+        if sc.props is not None:
+            pc = sc.props
+            n_props = int(srng.integers(pc.count[0], pc.count[1] + 1))
+            p_occ = float(srng.uniform(*pc.occlusion))
+            choices = len(pc.kinds) + len(pc.meshes)
+            for _ in range(n_props):
+                pick = int(srng.integers(choices))
+                shape = (parametric(pc.kinds[pick], srng) if pick < len(pc.kinds)
+                         else pc.meshes[pick - len(pc.kinds)])
+                heading = float(srng.uniform(-np.pi, np.pi))
+                occluder = bool(srng.uniform() < p_occ)
+                target = people[int(srng.integers(len(people)))].footprint
+                assert target is not None
+                spot = (place_between(srng, eye, target, shape.radius, discs[1:], room)
+                        if occluder else None)
+                if spot is None:  # not asked to occlude, or no room on the line of sight
+                    spot = place_anywhere(srng, eye, shape.radius, discs, room)
+                    occluder = False
+                if spot is None:
+                    dropped["props"] += 1
+                    continue
+                t = yaw_transform(heading, spot.x, spot.z)
+                props.append(PlacedProp(shape.kind, t, spot, occluder))
+                static.append(StaticMesh(f"prop:{shape.kind}",
+                                         shape.vertices @ t[:3, :3].T + t[:3, 3], shape.faces,
+                                         np.full(len(shape.faces), PROP, np.uint8)))
+                discs.append(spot)
+        return FrameDescription(frame, seed, cam, tuple(people), tuple(static), room,
+                                noise_state, tuple(props), dropped)

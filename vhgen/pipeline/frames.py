@@ -15,16 +15,21 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from vhgen.config import JobConfig
 from vhgen.pipeline.describe import FrameDescriber, sample_camera
-from vhgen.scene.description import FrameDescription
+from vhgen.scene.description import FrameDescription, Person
+from vhgen.scene.truth import joint_visibility, project
 from vhgen.sensor.model import SensorModel
 from vhgen.store.manifest import write_part
-from vhgen.store.record import FrameRecord
+from vhgen.store.record import FrameRecord, PersonRecord
 from vhgen.store.zarr_store import write_shard
+
+if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types here
+    from vhgen.render.renderer import View
 
 log = logging.getLogger(__name__)
 
@@ -97,13 +102,33 @@ class FrameGenerator:
         labels, instances, classes = unpack_ids(out.labels if out.labels is not None
                                                 else packed)
         return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
-                           self._record(desc, out.holes, int(out.valid.sum()), labels))
+                           self._record(desc, cam, out.holes, int(out.valid.sum()), labels))
 
     def render_frame(self, frame: int) -> FrameOutput:
         """Describe and render frame ``frame`` of the plan."""
         return self.render(self.describe(frame))
 
-    def _record(self, desc: FrameDescription, holes: dict, valid_pixels: int,
+    def _person(self, desc: FrameDescription, person: Person, view: View) -> PersonRecord:
+        """Per-person truth: provenance, placement, 3D/2D joints, visibility against the
+        clean rendered view (before the sensor)."""
+        w2c = desc.camera.world_to_camera
+        joints_cam = person.joints @ w2c[:3, :3].T + w2c[:3, 3]
+        intr = self.cfg.sensor.intrinsics
+        visible = joint_visibility(intr, joints_cam, person.instance, view.depth,
+                                   view.instances)
+        mid = int(self.pose_meta["motion_id"][person.pose_index])
+        return PersonRecord(
+            instance=person.instance, avatar_id=person.avatar_id,
+            motion_file=self.pose_meta["motion_files"][mid],
+            source_frame=int(self.pose_meta["source_frame"][person.pose_index]),
+            pose_index=person.pose_index, placement=person.placement.reshape(-1).tolist(),
+            body_offset=person.offset.tolist(),
+            joints_cam=joints_cam.astype(np.float32).reshape(-1).tolist(),
+            joints_px=np.nan_to_num(project(intr, joints_cam), nan=-1.0).astype(
+                np.float32).reshape(-1).tolist(),
+            joints_visible=visible.tolist(), visible_fraction=float(visible.mean()))
+
+    def _record(self, desc: FrameDescription, view: View, holes: dict, valid_pixels: int,
                 labels: np.ndarray) -> FrameRecord:
         person = desc.people[0]
         body = self.describer.body(person.avatar_id)
@@ -113,8 +138,9 @@ class FrameGenerator:
         mid = int(self.pose_meta["motion_id"][pose])
         intr = self.cfg.sensor.intrinsics
         sc = self.cfg.scene
-        scene = None if not sc.has_geometry else {
-            "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None}
+        scene = None if sc.is_person_only else {
+            "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None,
+            "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
         return FrameRecord(
             frame=desc.frame, shard=-1,
             motion_file=self.pose_meta["motion_files"][mid],
@@ -130,7 +156,8 @@ class FrameGenerator:
             joints_cam=joints_cam.reshape(-1).tolist(), seed=desc.seed,
             sensor=self._sensor_json, holes=json.dumps(holes, sort_keys=True),
             valid_pixels=valid_pixels, body_pixels=int((labels > 0).sum()),
-            num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True))
+            num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True),
+            people=[self._person(desc, p, view) for p in desc.people])
 
     def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from vhgen.scene.props import PARAMETRIC, PropShape
+
 # Clearances used to place a room around the person and the camera (metres): a person
 # with arms out fits in a 0.6 m radius; the camera body needs a little room behind it.
 PERSON_CLEARANCE_M = 0.6
@@ -26,12 +28,33 @@ class RoomConfig:
 
 
 @dataclass(frozen=True)
+class PropsConfig:
+    """Props per frame: how many (uniform integer in ``count``), of which kinds (the
+    parametric ones by name, plus mesh files loaded at config time), and ``occlusion``:
+    the range of the per-frame probability that a prop is put on the line of sight to a
+    person (partial occlusion), instead of anywhere on the floor."""
+
+    count: tuple[int, int] = (2, 4)
+    kinds: tuple[str, ...] = PARAMETRIC
+    meshes: tuple[PropShape, ...] = ()
+    occlusion: tuple[float, float] = (0.3, 0.6)
+
+
+@dataclass(frozen=True)
 class SceneConfig:
-    """What is around the people: a floor (y = 0) and optionally a room's walls."""
+    """What is around the people: a floor (y = 0), optionally a room's walls and props,
+    and how many people (uniform integer in ``people``; default exactly 1)."""
 
     floor: bool = False
     room: RoomConfig | None = None
+    people: tuple[int, int] = (1, 1)
+    props: PropsConfig | None = None
 
     @property
     def has_geometry(self) -> bool:
-        return self.floor or self.room is not None
+        return self.floor or self.room is not None or self.props is not None
+
+    @property
+    def is_person_only(self) -> bool:
+        """Today's scene: one person and nothing else (drawn as vhgen always drew it)."""
+        return not self.has_geometry and self.people == (1, 1)

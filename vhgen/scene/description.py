@@ -4,12 +4,13 @@ built from the plan before any GL call (see :mod:`vhgen.pipeline.describe`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from vhgen.scene.geometry import StaticMesh
+from vhgen.scene.placement import Disc
 from vhgen.scene.room import Room
 
 
@@ -25,6 +26,26 @@ class Person:
     bones: np.ndarray
     joints: np.ndarray
     offset: np.ndarray
+    placement: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4), after offset
+    footprint: Disc | None = None  # bounding circle on the floor at placement time
+
+
+@dataclass(frozen=True, eq=False)
+class PlacedProp:
+    """A prop in a frame: its kind (or mesh file name), the (4, 4) world transform of its
+    own frame, its footprint, and whether it was put on a line of sight to a person."""
+
+    kind: str
+    transform: np.ndarray
+    footprint: Disc
+    occluder: bool
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "x": self.footprint.x, "z": self.footprint.z,
+                "radius": self.footprint.r,
+                "yaw_deg": float(np.rad2deg(np.arctan2(self.transform[0, 2],
+                                                       self.transform[0, 0]))),
+                "occluder": self.occluder}
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,6 +76,8 @@ class FrameDescription:
     static: tuple[StaticMesh, ...]
     room: Room | None
     noise_state: Mapping[str, Any]
+    props: tuple[PlacedProp, ...] = ()
+    dropped: Mapping[str, int] = field(default_factory=dict)  # people/props that did not fit
 
     def noise_rng(self) -> np.random.Generator:
         """A fresh generator at :attr:`noise_state` (the same numbers every call)."""

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from vhgen.errors import StoreError
-from vhgen.store.record import FrameRecord, columns
+from vhgen.store.record import FrameRecord, PersonRecord, columns
 from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS
 
 
@@ -16,12 +16,16 @@ def _arrow(kind: str, num_joints: int):
     import pyarrow as pa
 
     scalar = {"int64": pa.int64(), "int32": pa.int32(), "uint64": pa.uint64(),
-              "float64": pa.float64(), "string": pa.string()}
+              "float64": pa.float64(), "float32": pa.float32(), "string": pa.string(),
+              "bool": pa.bool_()}
     if kind in scalar:
         return scalar[kind]
+    if kind == "people":
+        return pa.list_(pa.struct([(n, _arrow(k, num_joints))
+                                   for n, k in columns(PersonRecord)]))
     base, _, n = kind.partition("x")
-    size = 3 * num_joints if n == "J3" else int(n)
-    return pa.list_({"float64": pa.float64(), "float32": pa.float32()}[base], size)
+    size = {"J3": 3 * num_joints, "J2": 2 * num_joints, "J": num_joints}.get(n) or int(n)
+    return pa.list_(scalar[base], size)
 
 
 def manifest_schema(num_joints: int):

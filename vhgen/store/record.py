@@ -13,6 +13,27 @@ def _col(kind: str, doc: str = ""):
 
 
 @dataclass(frozen=True)
+class PersonRecord:
+    """One person of a frame (the ``people`` column holds one per person, in instance
+    order: person k has value k in ``instances``)."""
+
+    instance: int = _col("int32")
+    avatar_id: int = _col("int32")
+    motion_file: str = _col("string")
+    source_frame: int = _col("int32")
+    pose_index: int = _col("int64")
+    placement: list[float] = _col("float64x16", "row-major 4x4 world transform applied "
+                                  "after body_offset (identity for person 1)")
+    body_offset: list[float] = _col("float64x3")
+    joints_cam: list[float] = _col("float32xJ3", "bone heads, camera frame, metres")
+    joints_px: list[float] = _col("float32xJ2", "(u, v) pixels, pinhole projection of "
+                                  "joints_cam with the frame's fx, fy, cx, cy")
+    joints_visible: list[bool] = _col("boolxJ", "in the image and not occluded (see "
+                                      "vhgen.scene.truth.joint_visibility)")
+    visible_fraction: float = _col("float64", "visible joints / joints")
+
+
+@dataclass(frozen=True)
 class FrameRecord:
     """One frame's ground truth and provenance (the columns' meaning is the contract)."""
 
@@ -42,12 +63,14 @@ class FrameRecord:
     valid_pixels: int = _col("int32")
     body_pixels: int = _col("int32", "pixels with label > 0")
     num_people: int = _col("int32", "people in the frame; instance k = k-th person")
-    scene: str = _col("string", "JSON: floor, room corners/height/yaw (null = none)")
+    scene: str = _col("string", "JSON: floor, room corners/height/yaw, props, dropped "
+                      "(null = person only)")
+    people: list[PersonRecord] = _col("people", "one struct per person")
 
     def to_row(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def columns() -> list[tuple[str, str]]:
-    """(name, arrow kind) of every manifest column, in order."""
-    return [(f.name, f.metadata["arrow"]) for f in fields(FrameRecord)]
+def columns(record: type = FrameRecord) -> list[tuple[str, str]]:
+    """(name, arrow kind) of every field of ``record`` (a manifest row, or a person)."""
+    return [(f.name, f.metadata["arrow"]) for f in fields(record)]
