@@ -16,6 +16,7 @@ from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
 from vhgen.scene.config import (
+    BEHIND_M,
     CAMERA_CLEARANCE_M,
     PERSON_CLEARANCE_M,
     PropsConfig,
@@ -256,7 +257,8 @@ def _props(d: Any, src) -> PropsConfig:
 def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
     """The ``scene:`` section; checks at load time that a room can hold the people, the
     props and the camera at its farthest distance."""
-    check_keys(d, {"floor", "room", "people", "props"}, set(), src, "scene.")
+    check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction"}, set(), src,
+               "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
@@ -279,7 +281,8 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             _range(r, "height_m", src, "scene.room.", rd.height_m, lo=1.0, hi=20),
             _range(r, "yaw_deg", src, "scene.room.", rd.yaw_deg, lo=-90, hi=90))
         need_w = 2 * PERSON_CLEARANCE_M
-        need_d = camera.distance_m[1] + PERSON_CLEARANCE_M + CAMERA_CLEARANCE_M
+        need_d = (camera.distance_m[1] + PERSON_CLEARANCE_M + CAMERA_CLEARANCE_M
+                  + (BEHIND_M if people[1] > 1 else 0.0))
         if room.width_m[1] < need_w:
             raise ConfigError(src, "scene.room.width_m", f"room too small: at most "
                               f"{room.width_m[1]} m wide, a person needs {need_w:.1f} m")
@@ -296,4 +299,6 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
                               f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
                               f"about {2 * need_area:.1f} m^2")
-    return SceneConfig(floor=floor, room=room, people=people, props=props)
+    return SceneConfig(floor=floor, room=room, people=people, props=props,
+                       min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
+                                                 lo=0.0, hi=1.0, default=0.5))

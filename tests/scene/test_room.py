@@ -33,12 +33,14 @@ def test_person_and_camera_always_inside_over_seeds():
     for seed in range(3000):
         rng = np.random.default_rng(seed)
         yaw = rng.uniform(-180, 180)
-        dist = rng.uniform(1.0, 4.5)
+        behind = 1.5 * (seed % 2)  # room for more people beyond the first
+        dist = rng.uniform(1.0, 4.5 - behind)
         a = np.deg2rad(yaw)
         eye = np.array([dist * np.sin(a), dist * np.cos(a)])
-        room = sample_room(rng, cfg, eye, yaw)
+        room = sample_room(rng, cfg, eye, yaw, behind)
         c = room.corners_xz
         assert _inside(c, np.zeros(2)) >= PERSON_CLEARANCE_M - 1e-9, seed
+        assert _inside(c, -eye / dist * behind) >= PERSON_CLEARANCE_M - 1e-9, seed
         assert _inside(c, eye) >= CAMERA_CLEARANCE_M - 1e-9, seed
         assert cfg.width_m[0] - 1e-9 <= room.width_m <= cfg.width_m[1] + 1e-9
         assert cfg.depth_m[0] - 1e-9 <= room.depth_m <= cfg.depth_m[1] + 1e-9

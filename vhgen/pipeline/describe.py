@@ -12,14 +12,16 @@ from vhgen.body.shape import Shape
 from vhgen.body.skinning import bone_matrices, posed_heads, skin_vertices
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
-from vhgen.scene.config import CAMERA_CLEARANCE_M
+from vhgen.scene.config import BEHIND_M, CAMERA_CLEARANCE_M
 from vhgen.scene.description import CameraPose, FrameDescription, Person, PlacedProp
 from vhgen.scene.geometry import PROP, StaticMesh
 from vhgen.scene.placement import (
+    TALL_PROP_M,
     Disc,
     place_anywhere,
     place_between,
     place_in_view,
+    visible_fraction,
     yaw_transform,
 )
 from vhgen.scene.props import parametric
@@ -118,14 +120,26 @@ class FrameDescriber:
         eye = (-w2c[:3, :3].T @ w2c[:3, 3])[[0, 2]]
         forward = w2c[2, :3][[0, 2]]
         forward = forward / np.linalg.norm(forward)
-        room = sample_room(srng, sc.room, eye, cam.yaw_deg) if sc.room is not None else None
+        behind = BEHIND_M if sc.people[1] > 1 else 0.0
+        room = (sample_room(srng, sc.room, eye, cam.yaw_deg, behind) if sc.room is not None
+                else None)
         people = [person]
         assert person.footprint is not None
         discs = [person.footprint, Disc(float(eye[0]), float(eye[1]), CAMERA_CLEARANCE_M)]
         dropped = {"people": 0, "props": 0}
         intr = self.cfg.sensor.intrinsics
         half_fov = float(np.arctan2(intr.width / 2, intr.fx))
-        reach = (1.5, self.cfg.camera.distance_m[1] + 1.5)
+        reach = (self.cfg.camera.distance_m[0], self.cfg.camera.distance_m[1] + 1.5)
+        people_discs = [person.footprint]
+        walls: list[Disc] = []  # tall props: they hide people like people do
+
+        def keeps_people_visible(d: Disc, is_person: bool) -> bool:
+            """No person (the new one included) is hidden beyond min_visible_fraction."""
+            everyone = people_discs + ([d] if is_person else [])
+            blockers = everyone + walls + ([] if is_person else [d])
+            return all(visible_fraction(eye, t, [o for o in blockers if o is not t])
+                       >= sc.min_visible_fraction for t in everyone)
+
         n_people = int(srng.integers(sc.people[0], sc.people[1] + 1))
         for k in range(2, n_people + 1):
             a = int(srng.integers(len(self.avatars)))
@@ -134,7 +148,8 @@ class FrameDescriber:
             local = self.person(k, a, pose, ground=sc.floor, footprint=True)
             assert local.footprint is not None
             r = local.footprint.r
-            spot = place_in_view(srng, eye, forward, half_fov, reach, r, discs, room)
+            spot = place_in_view(srng, eye, forward, half_fov, reach, r, discs, room,
+                                 accept=lambda d: keeps_people_visible(d, True))
             if spot is None:
                 dropped["people"] += 1
                 continue
@@ -144,6 +159,7 @@ class FrameDescriber:
             people.append(Person(len(people) + 1, a, pose, t @ local.bones,
                                  local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot))
             discs.append(spot)
+            people_discs.append(spot)
         props: list[PlacedProp] = []
         static = list(static_geometry(sc, room))
         if sc.props is not None:
@@ -159,10 +175,15 @@ class FrameDescriber:
                 occluder = bool(srng.uniform() < p_occ)
                 target = people[int(srng.integers(len(people)))].footprint
                 assert target is not None
-                spot = (place_between(srng, eye, target, shape.radius, discs[1:], room)
-                        if occluder else None)
+                tall = float(shape.vertices[:, 1].max()) >= TALL_PROP_M
+
+                def ok(d: Disc, tall: bool = tall) -> bool:
+                    return not tall or keeps_people_visible(d, False)
+
+                spot = (place_between(srng, eye, target, shape.radius, discs, room,
+                                      accept=ok) if occluder else None)
                 if spot is None:  # not asked to occlude, or no room on the line of sight
-                    spot = place_anywhere(srng, eye, shape.radius, discs, room)
+                    spot = place_anywhere(srng, eye, shape.radius, discs, room, accept=ok)
                     occluder = False
                 if spot is None:
                     dropped["props"] += 1
@@ -173,5 +194,7 @@ class FrameDescriber:
                                          shape.vertices @ t[:3, :3].T + t[:3, 3], shape.faces,
                                          np.full(len(shape.faces), PROP, np.uint8)))
                 discs.append(spot)
+                if tall:
+                    walls.append(spot)
         return FrameDescription(frame, seed, cam, tuple(people), tuple(static), room,
                                 noise_state, tuple(props), dropped)

@@ -13,6 +13,7 @@ from vhgen.scene.props import PARAMETRIC, PropShape
 # with arms out fits in a 0.6 m radius; the camera body needs a little room behind it.
 PERSON_CLEARANCE_M = 0.6
 CAMERA_CLEARANCE_M = 0.3
+BEHIND_M = 1.5  # floor kept beyond the first person when a frame may hold more people
 OPEN_FLOOR_HALF_M = 10.0  # half side of the floor when there are no walls
 
 
@@ -49,6 +50,9 @@ class SceneConfig:
     room: RoomConfig | None = None
     people: tuple[int, int] = (1, 1)
     props: PropsConfig | None = None
+    # each person keeps at least this fraction of its width in view past nearer people
+    # and tall props (a floor-plan test at placement time; see placement.visible_fraction)
+    min_visible_fraction: float = 0.5
 
     @property
     def has_geometry(self) -> bool:

@@ -9,6 +9,7 @@ counts it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,7 @@ PLACEMENT_TRIES = 30
 GAP_M = 0.05  # free space kept between two footprints
 WALL_GAP_M = 0.05
 MIN_PROP_RANGE_M = 0.8  # a prop nearer the camera than this would fill the view
+TALL_PROP_M = 1.2  # props at least this tall can hide a whole person (doors)
 
 
 @dataclass(frozen=True)
@@ -55,12 +57,37 @@ def free(d: Disc, others: list[Disc], room: Room | None) -> bool:
     return inside(room, d) and all(d.clear_of(o) for o in others)
 
 
+def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
+                     samples: int = 64) -> float:
+    """The fraction of ``target``'s angular width, seen from the camera, not covered by
+    the angular width of a nearer occluder (a floor-plan bound on how much of a standing
+    person stays in view: occluders are treated as tall as the target)."""
+    def interval(d: Disc) -> tuple[float, float, float]:
+        dx, dz = d.x - eye_xz[0], d.z - eye_xz[1]
+        dist = float(np.hypot(dx, dz))
+        half = float(np.arcsin(min(1.0, d.r / max(dist, 1e-9))))
+        return float(np.arctan2(dx, dz)), half, dist
+
+    tc, th, tdist = interval(target)
+    angles = tc + np.linspace(-th, th, samples)
+    covered = np.zeros(samples, bool)
+    for o in occluders:
+        oc, oh, odist = interval(o)
+        if odist >= tdist:
+            continue
+        diff = np.angle(np.exp(1j * (angles - oc)))  # wrapped to (-pi, pi]
+        covered |= np.abs(diff) <= oh
+    return float(1.0 - covered.mean())
+
+
 def place_in_view(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.ndarray,
                   half_fov_rad: float, distance_m: tuple[float, float], radius: float,
                   others: list[Disc], room: Room | None,
+                  accept: Callable[[Disc], bool] | None = None,
                   tries: int = PLACEMENT_TRIES) -> Disc | None:
     """A footprint of ``radius`` whose whole circle is inside the horizontal field of view,
-    at a distance from the camera in ``distance_m``, free of ``others`` and in the room."""
+    at a distance from the camera in ``distance_m``, free of ``others``, in the room, and
+    passing ``accept``."""
     base = np.arctan2(forward_xz[0], forward_xz[1])
     for _ in range(tries):
         u_d, u_b = rng.uniform(size=2)
@@ -71,13 +98,14 @@ def place_in_view(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.n
         bearing = base + (2 * u_b - 1) * (half_fov_rad - margin)
         d = Disc(float(eye_xz[0] + dist * np.sin(bearing)),
                  float(eye_xz[1] + dist * np.cos(bearing)), radius)
-        if free(d, others, room):
+        if free(d, others, room) and (accept is None or accept(d)):
             return d
     return None
 
 
 def place_between(rng: np.random.Generator, eye_xz: np.ndarray, target: Disc, radius: float,
                   others: list[Disc], room: Room | None,
+                  accept: Callable[[Disc], bool] | None = None,
                   tries: int = PLACEMENT_TRIES) -> Disc | None:
     """A footprint on the line of sight from the camera to ``target`` (so it hides part
     of it), clear of the target, the camera and ``others``."""
@@ -95,13 +123,14 @@ def place_between(rng: np.random.Generator, eye_xz: np.ndarray, target: Disc, ra
         n = np.array([to[1], -to[0]]) / length
         p = eye_xz + to / length * t + n * side
         d = Disc(float(p[0]), float(p[1]), radius)
-        if free(d, [target, *others], room):
+        if free(d, [target, *others], room) and (accept is None or accept(d)):
             return d
     return None
 
 
 def place_anywhere(rng: np.random.Generator, eye_xz: np.ndarray, radius: float,
                    others: list[Disc], room: Room | None, spread_m: float = 4.0,
+                   accept: Callable[[Disc], bool] | None = None,
                    tries: int = PLACEMENT_TRIES) -> Disc | None:
     """A footprint anywhere on the room's floor (no room: within ``spread_m`` of the
     origin), clear of the camera and ``others``."""
@@ -114,7 +143,7 @@ def place_anywhere(rng: np.random.Generator, eye_xz: np.ndarray, radius: float,
         u = rng.uniform(size=2)
         p = lo + u * (hi - lo)
         d = Disc(float(p[0]), float(p[1]), radius)
-        if free(d, [cam, *others], room):
+        if free(d, [cam, *others], room) and (accept is None or accept(d)):
             return d
     return None
 

@@ -32,20 +32,26 @@ class Room:
                 "width_m": self.width_m, "depth_m": self.depth_m, "yaw_deg": self.yaw_deg}
 
 
-def _spans(theta: float, eye_xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _spans(theta: float, eye_xz: np.ndarray, behind_m: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Room axes (width, depth) for yaw ``theta`` and the (lo, hi) extents along each that
-    keep the person (origin) and the camera inside with their clearances."""
+    keep the person (origin), the floor ``behind_m`` beyond it (seen from the camera) and
+    the camera inside with their clearances."""
     wa = np.array([np.cos(theta), -np.sin(theta)])
     da = np.array([np.sin(theta), np.cos(theta)])
     cam = np.array([eye_xz @ wa, eye_xz @ da])
-    lo = np.minimum(-PERSON_CLEARANCE_M, cam - CAMERA_CLEARANCE_M)
-    hi = np.maximum(PERSON_CLEARANCE_M, cam + CAMERA_CLEARANCE_M)
+    far = -cam / max(float(np.hypot(*cam)), 1e-9) * behind_m
+    lo = np.minimum(np.minimum(-PERSON_CLEARANCE_M, far - PERSON_CLEARANCE_M),
+                    cam - CAMERA_CLEARANCE_M)
+    hi = np.maximum(np.maximum(PERSON_CLEARANCE_M, far + PERSON_CLEARANCE_M),
+                    cam + CAMERA_CLEARANCE_M)
     return np.stack([wa, da]), lo, hi
 
 
 def sample_room(rng: np.random.Generator, cfg: RoomConfig, eye_xz: np.ndarray,
-                camera_yaw_deg: float) -> Room:
-    """A room containing the person (at the origin) and the camera at ``eye_xz`` (x, z).
+                camera_yaw_deg: float, behind_m: float = 0.0) -> Room:
+    """A room containing the person (at the origin) and the camera at ``eye_xz`` (x, z),
+    and ``behind_m`` of floor beyond the person (room for more people).
 
     The room's depth axis points along the camera's yaw turned by a sampled ``yaw_deg``;
     if that turn leaves no room of the configured size around both, the turn is dropped
@@ -57,7 +63,7 @@ def sample_room(rng: np.random.Generator, cfg: RoomConfig, eye_xz: np.ndarray,
     eye_xz = np.asarray(eye_xz, np.float64)
     for turn in (j, 0.0):
         theta = np.deg2rad(camera_yaw_deg + turn)
-        axes, lo, hi = _spans(theta, eye_xz)
+        axes, lo, hi = _spans(theta, eye_xz, behind_m)
         need = hi - lo
         if need[0] <= cfg.width_m[1] and need[1] <= cfg.depth_m[1]:
             break
