@@ -213,3 +213,54 @@ def test_cli_info_and_preview(smoke, tmp_path, capsys):
     assert (tmp_path / "p.png").stat().st_size > 10_000
     assert main(["info", str(tmp_path)]) == 2  # not a store: a clear error, exit 2
     assert "not a Zarr v3 group" in capsys.readouterr().err
+
+
+SCENE_JOB = """
+name: scene_smoke
+seed: 7
+motions: [{m}/02_01.bvh]
+sensor: kinect_v1_full
+poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
+avatars: {{count: 2}}
+scene:
+  floor: true
+  room: {{width_m: [4, 6], depth_m: [5.5, 7]}}
+  people: [1, 3]
+  props: {{count: [2, 4]}}
+output: {{frames_per_shard: 2}}
+render: {{backend: osmesa}}
+num_workers: 2
+"""
+
+
+def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_mocap):
+    """A living-room style job through Ray: the new arrays read with plain zarr/pyarrow,
+    and the same bytes with 1 and 2 workers."""
+    import pyarrow.parquet as pq
+    import zarr
+
+    p = tmp_path / "scene.yaml"
+    p.write_text(SCENE_JOB.format(m=shared_mocap))
+    run_job(JobConfig.load(p), tmp_path / "two.zarr")
+    run_job(JobConfig.load(p, num_workers=1), tmp_path / "one.zarr")
+    a, b = _store_files(tmp_path / "two.zarr"), _store_files(tmp_path / "one.zarr")
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+    assert any("instances" in k for k in a) and any("classes" in k for k in a)
+    ma = pq.read_table(tmp_path / "two.zarr" / "manifest.parquet")
+    assert ma.equals(pq.read_table(tmp_path / "one.zarr" / "manifest.parquet"))
+
+    g = zarr.open_group(str(tmp_path / "two.zarr"), mode="r")
+    names = g.attrs["class_names"]
+    lab, inst, cls = g["labels"][:], g["instances"][:], g["classes"][:]
+    assert inst.dtype == cls.dtype == np.uint8 and inst.shape == lab.shape
+    assert ((lab > 0) == (cls == names.index("person"))).all()
+    present = set(np.unique(cls).tolist())
+    assert {names.index(c) for c in ("floor", "wall", "person")} <= present
+    rows = ma.to_pylist()
+    for f, row in enumerate(rows):
+        assert row["num_people"] == len(row["people"]) >= 1
+        assert set(np.unique(inst[f]).tolist()) <= set(range(row["num_people"] + 1))
+        person = row["people"][0]
+        assert len(person["joints_px"]) == 2 * 31 and len(person["joints_visible"]) == 31
+        assert json.loads(row["scene"])["floor"] is True
+    assert max(r["num_people"] for r in rows) > 1
