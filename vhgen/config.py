@@ -72,6 +72,20 @@ class CameraConfig:
     look_at_height_m: tuple[float, float] = (0.85, 1.0)
     near_m: float = 0.1
     far_m: float = 20.0
+    # a mounted camera (set by pitch_deg or a preset): level, turned towards the subject,
+    # tilted down by pitch (degrees, + = towards the floor) and rolled about its axis;
+    # look_at_height_m is then unused. None = the camera looks at the subject (above).
+    pitch_deg: tuple[float, float] | None = None
+    roll_deg: tuple[float, float] = (0.0, 0.0)
+
+
+# How users mount the camera: a Kinect on top of a TV, a robot's head camera.
+CAMERA_PRESETS: dict[str, dict[str, Any]] = {
+    "tv_top_kinect": {"height_m": [1.0, 1.6], "pitch_deg": [5, 20], "roll_deg": [-2, 2],
+                      "distance_m": [2.0, 3.5], "yaw_deg": [-45, 45]},
+    "robot_head": {"height_m": [1.1, 1.6], "pitch_deg": [5, 25], "roll_deg": [-5, 5],
+                   "distance_m": [1.8, 3.2], "yaw_deg": [-90, 90]},
+}
 
 
 @dataclass(frozen=True)
@@ -167,17 +181,7 @@ class JobConfig:
                                     default=0.0),
             skirt_probability=_num(av, "skirt_probability", path, "avatars.", lo=0, hi=1,
                                    default=0.0))
-        ca = d.get("camera") or {}
-        cd = CameraConfig()
-        check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m",
-                        "far_m"}, set(), path, "camera.")
-        camera = CameraConfig(
-            _range(ca, "distance_m", path, "camera.", cd.distance_m, lo=0.1, hi=60),
-            _range(ca, "height_m", path, "camera.", cd.height_m, lo=-10, hi=10),
-            _range(ca, "yaw_deg", path, "camera.", cd.yaw_deg, lo=-360, hi=360),
-            _range(ca, "look_at_height_m", path, "camera.", cd.look_at_height_m, lo=-10, hi=10),
-            _num(ca, "near_m", path, "camera.", lo=1e-3, default=cd.near_m),
-            _num(ca, "far_m", path, "camera.", lo=0.5, default=cd.far_m))
+        camera = _camera(d.get("camera") or {}, path)
         scene = _scene(d.get("scene") or {}, path, camera)
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
@@ -200,6 +204,7 @@ class JobConfig:
             sensor = SensorConfig.load(sensor_path)
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
+        _check_camera_sees(camera, sensor.intrinsics, path)
         assets = d.get("assets")
         if assets is not None:
             assets = str((path.parent / Path(assets).expanduser()).resolve())
@@ -215,6 +220,56 @@ class JobConfig:
                                    integer=True, default=3),
             backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
             source=str(path))
+
+
+def _camera(ca: dict, src) -> CameraConfig:
+    cd = CameraConfig()
+    check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m", "far_m",
+                    "pitch_deg", "roll_deg", "preset"}, set(), src, "camera.")
+    preset = ca.get("preset")
+    if preset is not None:
+        if preset not in CAMERA_PRESETS:
+            raise ConfigError(src, "camera.preset", f"unknown preset {preset!r}; choose one of "
+                              f"{', '.join(CAMERA_PRESETS)}")
+        ca = {**CAMERA_PRESETS[preset], **{k: v for k, v in ca.items() if k != "preset"}}
+    camera = CameraConfig(
+        _range(ca, "distance_m", src, "camera.", cd.distance_m, lo=0.1, hi=60),
+        _range(ca, "height_m", src, "camera.", cd.height_m, lo=-10, hi=10),
+        _range(ca, "yaw_deg", src, "camera.", cd.yaw_deg, lo=-360, hi=360),
+        _range(ca, "look_at_height_m", src, "camera.", cd.look_at_height_m, lo=-10, hi=10),
+        _num(ca, "near_m", src, "camera.", lo=1e-3, default=cd.near_m),
+        _num(ca, "far_m", src, "camera.", lo=0.5, default=cd.far_m),
+        _range(ca, "pitch_deg", src, "camera.", (0.0, 0.0), lo=-80, hi=80)
+        if "pitch_deg" in ca else None,
+        _range(ca, "roll_deg", src, "camera.", cd.roll_deg, lo=-45, hi=45))
+    if camera.roll_deg != (0.0, 0.0) and camera.pitch_deg is None:
+        raise ConfigError(src, "camera.roll_deg", "needs pitch_deg (a mounted camera)")
+    return camera
+
+
+# a standing person's body centre, metres above the floor, for the visibility check
+_BODY_CENTRE_M = 0.9
+
+
+def _check_camera_sees(camera: CameraConfig, intr, src) -> None:
+    """Load-time: some camera in the configured ranges sees the subject's body centre."""
+    if camera.distance_m[0] >= camera.far_m:
+        raise ConfigError(src, "camera.distance_m", f"the camera is never nearer than "
+                          f"{camera.distance_m[0]} m, beyond far_m {camera.far_m} m: it can "
+                          "never see a person")
+    if camera.pitch_deg is None:
+        return  # it looks at the subject
+    half_v = np.degrees(np.arctan2(intr.height / 2, intr.fy))
+    h = np.linspace(*camera.height_m, 9)[:, None, None]
+    dist = np.linspace(*camera.distance_m, 9)[None, :, None]
+    pitch = np.linspace(*camera.pitch_deg, 9)[None, None, :]
+    below = np.degrees(np.arctan2(h - _BODY_CENTRE_M, dist))  # angle under the horizon
+    if (np.abs(below - pitch) > half_v).all():
+        raise ConfigError(src, "camera.pitch_deg", f"with height_m {list(camera.height_m)} "
+                          f"and distance_m {list(camera.distance_m)}, no pitch in "
+                          f"{list(camera.pitch_deg)} puts a person's body (0.9 m above the "
+                          f"floor) in the {2 * half_v:.0f} deg vertical view: it can never "
+                          "see a person")
 
 
 def _int_range(d: dict, key: str, src, prefix: str, default: tuple[int, int], lo: int,

@@ -33,16 +33,36 @@ FLOOR_SNAP_M = 0.10  # a lowest point closer than this to the floor is put on it
 
 
 def sample_camera(rng: np.random.Generator, cfg: CameraConfig) -> CameraPose:
-    """Camera placement around the subject's root (the first 4 draws of the frame's
-    stream, in this order: yaw, distance, height, look-at height)."""
+    """Camera placement around the subject's root (the first draws of the frame's
+    stream, in this order: yaw, distance, height, then look-at height; or, for a mounted
+    camera (``pitch_deg`` set), pitch and roll)."""
     yaw = rng.uniform(*cfg.yaw_deg)
     dist = rng.uniform(*cfg.distance_m)
     height = rng.uniform(*cfg.height_m)
-    target_h = rng.uniform(*cfg.look_at_height_m)
     a = np.deg2rad(yaw)
     eye = np.array([dist * np.sin(a), height, dist * np.cos(a)])
-    w2c = look_at(eye, np.array([0.0, target_h, 0.0]))
-    return CameraPose(w2c, float(yaw), float(dist), float(height))
+    if cfg.pitch_deg is None:
+        target_h = rng.uniform(*cfg.look_at_height_m)
+        w2c = look_at(eye, np.array([0.0, target_h, 0.0]))
+        return CameraPose(w2c, float(yaw), float(dist), float(height))
+    pitch = float(rng.uniform(*cfg.pitch_deg))
+    roll = float(rng.uniform(*cfg.roll_deg))
+    w2c = mounted_camera(eye, pitch, roll)
+    return CameraPose(w2c, float(yaw), float(dist), float(height), pitch, roll)
+
+
+def mounted_camera(eye: np.ndarray, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """world_to_camera (4, 4) of a camera at ``eye`` turned towards the world's y axis,
+    tilted down by ``pitch_deg`` and rolled by ``roll_deg`` about its optical axis."""
+    level = np.array([-eye[0], 0.0, -eye[2]])
+    level /= np.linalg.norm(level)
+    p = np.deg2rad(pitch_deg)
+    forward = np.cos(p) * level + np.array([0.0, -np.sin(p), 0.0])
+    w2c = look_at(eye, eye + forward)
+    c, s = np.cos(np.deg2rad(roll_deg)), np.sin(np.deg2rad(roll_deg))
+    rz = np.eye(4)
+    rz[:2, :2] = [[c, -s], [s, c]]
+    return rz @ w2c
 
 
 class FrameDescriber:

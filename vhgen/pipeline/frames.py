@@ -157,7 +157,9 @@ class FrameGenerator:
             sensor=self._sensor_json, holes=json.dumps(holes, sort_keys=True),
             valid_pixels=valid_pixels, body_pixels=int((labels > 0).sum()),
             num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True),
-            people=[self._person(desc, p, view) for p in desc.people])
+            people=[self._person(desc, p, view) for p in desc.people],
+            camera_pitch_deg=float(np.degrees(np.arcsin(np.clip(-w2c[2, 1], -1, 1)))),
+            camera_roll_deg=float(np.degrees(np.arctan2(w2c[0, 1], -w2c[1, 1]))))
 
     def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""

@@ -51,12 +51,15 @@ class PlacedProp:
 @dataclass(frozen=True, eq=False)
 class CameraPose:
     """world_to_camera (4, 4) float64 (OpenCV axes: x right, y down, z forward) and the
-    sampled mount: yaw about the subject (deg), distance and height (m)."""
+    sampled mount: yaw about the subject (deg), distance and height (m), and for a
+    mounted camera its pitch and roll (deg; None when it looks at the subject)."""
 
     world_to_camera: np.ndarray
     yaw_deg: float
     distance_m: float
     height_m: float
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
 
 
 @dataclass(frozen=True, eq=False)

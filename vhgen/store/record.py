@@ -66,6 +66,8 @@ class FrameRecord:
     scene: str = _col("string", "JSON: floor, room corners/height/yaw, props, dropped "
                       "(null = person only)")
     people: list[PersonRecord] = _col("people", "one struct per person")
+    camera_pitch_deg: float = _col("float64", "optical axis below the horizon, degrees")
+    camera_roll_deg: float = _col("float64", "about the optical axis, degrees")
 
     def to_row(self) -> dict[str, Any]:
         return asdict(self)
