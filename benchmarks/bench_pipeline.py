@@ -34,6 +34,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60, help="frames for the per-stage timings")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
     ap.add_argument("--no-e2e", action="store_true", help="skip the Ray end-to-end run")
+    ap.add_argument("--scene", default=str(REPO / "configs" / "scenes" / "living_room.yaml"),
+                    help="a scene config whose frames are timed beside --config's, "
+                         "interleaved (target: at most 1.3x); '' to skip")
     args = ap.parse_args()
 
     from vhgen.assets import resolve_asset_dir
@@ -102,6 +105,9 @@ def main() -> None:
     out_rows = [gen.render_frame(int(f)) for f in frames[: cfg.frames_per_shard]]
     t_full = time.perf_counter() - t
     rows.append(("frame (render+sensor+meta)", len(out_rows), t_full))
+    ratio = None
+    if args.scene:
+        ratio = _scene_rows(args.scene, args.backend, gen, frames, rows, asset_dir)
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
@@ -139,6 +145,59 @@ def main() -> None:
         print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
     print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
           f"instances, classes; zstd {cfg.compression_level})")
+    if ratio is not None:
+        print(f"scene frame / person-only frame: {ratio[0]:.2f}x as configured, "
+              f"{ratio[1]:.2f}x with one person (target <= 1.3x)")
+
+
+def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, float]:
+    """Frames of the scene config timed interleaved with the person-only generator's
+    (same process, same machine state): rows for both and their ratio."""
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.config import JobConfig
+    from vhgen.mocap.retarget import RetargetMap, load_all_maps
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.plan import make_plan
+    from vhgen.pipeline.poses import load_poses
+
+    full = JobConfig.load(scene_path, backend=backend)
+    # the same room and props with exactly one person: what the scene itself costs
+    one = replace(full, scene=replace(full.scene, people=(1, 1)))
+    cfg = full
+    body = build_body(asset_dir, LabelScheme.load(cfg.labels))
+    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
+    poses = load_poses(cfg.motions, body.rig, rmap, cfg.poses)
+    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
+    gens = [FrameGenerator(c, asset_dir, poses.rotations, poses.roots,
+                           {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
+                            "motion_files": poses.motion_files,
+                            "motion_sha1": poses.motion_sha1},
+                           {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
+                            "seeds": plan.seeds}, plan.avatars, context=gen.ctx)
+            for c in (full, one)]
+    for g in gens:
+        for f in range(min(4, plan.num_frames)):  # avatars built and resident
+            g.render_frame(f)
+    t_person = 0.0
+    t_scene = [0.0, 0.0]
+    people = 0
+    for i, f in enumerate(frames):
+        t = time.perf_counter()
+        gen.render_frame(int(f))
+        t_person += time.perf_counter() - t
+        for k, g in enumerate(gens):
+            t = time.perf_counter()
+            out = g.render_frame(i % plan.num_frames)
+            t_scene[k] += time.perf_counter() - t
+            people += out.record.num_people if k == 0 else 0
+    for g in gens:
+        g.close()
+    n = len(frames)
+    rows.append(("frame, person only (interleaved)", n, t_person))
+    rows.append((f"frame, {cfg.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
+    rows.append((f"frame, {cfg.name} with 1 person (interleaved)", n, t_scene[1]))
+    return t_scene[0] / t_person, t_scene[1] / t_person
 
 
 if __name__ == "__main__":

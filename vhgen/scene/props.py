@@ -31,16 +31,27 @@ class PropShape:
         return float(np.hypot(self.vertices[:, 0], self.vertices[:, 2]).max())
 
 
-def _boxes(parts: list[tuple[tuple[float, float, float], tuple[float, float, float]]]):
-    """Concatenated boxes, each (extents, centre)."""
-    import trimesh
+# a unit cube centred on the origin: 8 corners, 12 outward-wound triangles
+_CUBE_V = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+_CUBE_F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                    [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
 
-    meshes = []
-    for extents, centre in parts:
-        b = trimesh.creation.box(extents=extents)
-        b.apply_translation(centre)
-        meshes.append(b)
-    return trimesh.util.concatenate(meshes)
+
+class _Mesh:
+    """Vertices and faces of concatenated boxes (plain NumPy: a box is 12 triangles, and
+    building them with trimesh per frame costs milliseconds)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        self.vertices = vertices
+        self.faces = faces
+
+
+def _boxes(parts: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
+           ) -> _Mesh:
+    """Concatenated boxes, each (extents, centre)."""
+    verts = [_CUBE_V * np.asarray(e) + np.asarray(c) for e, c in parts]
+    faces = [_CUBE_F + 8 * k for k in range(len(parts))]
+    return _Mesh(np.concatenate(verts), np.concatenate(faces))
 
 
 def _legs(w: float, d: float, leg: float, h: float) -> list:
@@ -82,9 +93,10 @@ def parametric(kind: str, rng: np.random.Generator) -> PropShape:
                     ((w, 0.08, 0.1), (0, h + 0.04, 0))])
     elif kind == "cylinder":
         r, h = lerp(0, 0.1, 0.35), lerp(1, 0.4, 1.2)
-        m = trimesh.creation.cylinder(radius=r, height=h, sections=24)
+        cyl = trimesh.creation.cylinder(radius=r, height=h, sections=24)
         # trimesh's cylinder runs along z: stand it up along y
-        m.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+        cyl.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+        m = _Mesh(np.asarray(cyl.vertices), np.asarray(cyl.faces))
     else:
         raise ValueError(f"unknown prop kind {kind!r}")
     return _stand(kind, np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64))
