@@ -152,32 +152,18 @@ def main() -> None:
 
 def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, float]:
     """Frames of the scene config timed interleaved with the person-only generator's
-    (same process, same machine state): rows for both and their ratio."""
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
+    (same process, same machine state): rows for both and their ratios."""
     from vhgen.config import JobConfig
-    from vhgen.mocap.retarget import RetargetMap, load_all_maps
-    from vhgen.pipeline.frames import FrameGenerator
-    from vhgen.pipeline.plan import make_plan
-    from vhgen.pipeline.poses import load_poses
+    from vhgen.pipeline.frames import local_generator
 
     full = JobConfig.load(scene_path, backend=backend)
     # the same room and props with exactly one person: what the scene itself costs
     one = replace(full, scene=replace(full.scene, people=(1, 1)))
-    cfg = full
-    body = build_body(asset_dir, LabelScheme.load(cfg.labels))
-    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
-    poses = load_poses(cfg.motions, body.rig, rmap, cfg.poses)
-    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
-    gens = [FrameGenerator(c, asset_dir, poses.rotations, poses.roots,
-                           {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
-                            "motion_files": poses.motion_files,
-                            "motion_sha1": poses.motion_sha1},
-                           {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
-                            "seeds": plan.seeds}, plan.avatars, context=gen.ctx)
-            for c in (full, one)]
+    gens = [local_generator(c, asset_dir, context=gen.ctx)[0] for c in (full, one)]
+    plan = gens[0].describer.plan
+    num_frames = len(plan["seeds"])
     for g in gens:
-        for f in range(min(4, plan.num_frames)):  # avatars built and resident
+        for f in range(min(4, num_frames)):  # avatars built and resident
             g.render_frame(f)
     t_person = 0.0
     t_scene = [0.0, 0.0]
@@ -188,15 +174,15 @@ def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[floa
         t_person += time.perf_counter() - t
         for k, g in enumerate(gens):
             t = time.perf_counter()
-            out = g.render_frame(i % plan.num_frames)
+            out = g.render_frame(i % num_frames)
             t_scene[k] += time.perf_counter() - t
             people += out.record.num_people if k == 0 else 0
     for g in gens:
         g.close()
     n = len(frames)
     rows.append(("frame, person only (interleaved)", n, t_person))
-    rows.append((f"frame, {cfg.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
-    rows.append((f"frame, {cfg.name} with 1 person (interleaved)", n, t_scene[1]))
+    rows.append((f"frame, {full.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
+    rows.append((f"frame, {full.name} with 1 person (interleaved)", n, t_scene[1]))
     return t_scene[0] / t_person, t_scene[1] / t_person
 
 

@@ -26,26 +26,12 @@ render: {{backend: osmesa}}
 
 
 def _generator(tmp: Path, sensor: str, scene: str = ""):
-    from vhgen.assets import resolve_asset_dir
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.mocap.retarget import load_all_maps
-    from vhgen.pipeline.frames import FrameGenerator
-    from vhgen.pipeline.plan import make_plan
-    from vhgen.pipeline.poses import load_poses
+    from vhgen.pipeline.frames import local_generator
 
     p = tmp / f"{sensor}.yaml"
     p.write_text(JOB.format(sensor=sensor, scene=scene))
     cfg = JobConfig.load(p)
-    asset_dir = resolve_asset_dir(cfg.assets)
-    base = build_body(asset_dir, LabelScheme.load(cfg.labels))
-    poses = load_poses(cfg.motions, base.rig, load_all_maps(), cfg.poses)
-    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
-    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
-                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
-                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
-                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
-                          "seeds": plan.seeds}, plan.avatars)
+    gen, poses, plan = local_generator(cfg)
     return cfg, poses, plan, gen
 
 

@@ -15,7 +15,7 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -189,6 +189,30 @@ class FrameGenerator:
     def close(self) -> None:
         self.scene.release()
         self.renderer.release()
+
+
+def local_generator(cfg: JobConfig, asset_dir: str | Path | None = None, context=None
+                    ) -> tuple[FrameGenerator, Any, Any]:
+    """A generator for ``cfg`` in this process, without Ray (tests, benchmarks, tools):
+    poses loaded and the plan made as the driver does. Returns (generator, poses, plan)."""
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.mocap.retarget import RetargetMap, load_all_maps
+    from vhgen.pipeline.plan import make_plan
+    from vhgen.pipeline.poses import load_poses
+
+    asset_dir = resolve_asset_dir(cfg.assets) if asset_dir is None else asset_dir
+    base = build_body(Path(asset_dir), LabelScheme.load(cfg.labels))
+    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
+    poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
+    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
+                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
+                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
+                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
+                          "seeds": plan.seeds}, plan.avatars, context=context)
+    return gen, poses, plan
 
 
 def _with_shard(record: FrameRecord, shard: int) -> FrameRecord:

@@ -20,7 +20,7 @@ from vhgen.scene.room import Room
 PLACEMENT_TRIES = 30
 GAP_M = 0.05  # free space kept between two footprints
 WALL_GAP_M = 0.05
-MIN_PROP_RANGE_M = 0.8  # a prop nearer the camera than this would fill the view
+MIN_PROP_RANGE_M = 1.2  # a prop nearer the camera than this would fill the view
 TALL_PROP_M = 1.2  # props at least this tall can hide a whole person (doors)
 
 
