@@ -241,7 +241,7 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
 
     p = tmp_path / "scene.yaml"
     p.write_text(SCENE_JOB.format(m=shared_mocap))
-    run_job(JobConfig.load(p), tmp_path / "two.zarr")
+    summary = run_job(JobConfig.load(p), tmp_path / "two.zarr")
     run_job(JobConfig.load(p, num_workers=1), tmp_path / "one.zarr")
     a, b = _store_files(tmp_path / "two.zarr"), _store_files(tmp_path / "one.zarr")
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
@@ -264,3 +264,6 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
         assert len(person["joints_px"]) == 2 * 31 and len(person["joints_visible"]) == 31
         assert json.loads(row["scene"])["floor"] is True
     assert max(r["num_people"] for r in rows) > 1
+    # objects that did not fit are counted, in the summary and per frame
+    for k in ("people", "props"):
+        assert summary["dropped"][k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)

@@ -169,8 +169,12 @@ class FrameGenerator:
         ids = {k: np.zeros((n, h, w), np.uint8) for k in ("labels", "instances", "classes")}
         raw = None  # allocated if the sensor's encoding keeps raw11 (the model decides)
         records = []
+        dropped = {"people": 0, "props": 0}
         for i, f in enumerate(range(start, stop)):
-            o = self.render_frame(f)
+            desc = self.describe(f)
+            for k, v in desc.dropped.items():
+                dropped[k] += v
+            o = self.render(desc)
             depth[i] = o.depth_mm
             ids["labels"][i], ids["instances"][i], ids["classes"][i] = (o.labels, o.instances,
                                                                         o.classes)
@@ -184,7 +188,7 @@ class FrameGenerator:
         num_joints = len(records[0].joints_cam) // 3
         write_part(store, shard, records, num_joints)
         return {"shard": shard, "frames": n, "renderer": self.renderer_info,
-                "valid_pixels": int(sum(r.valid_pixels for r in records))}
+                "valid_pixels": int(sum(r.valid_pixels for r in records)), "dropped": dropped}
 
     def close(self) -> None:
         self.scene.release()
