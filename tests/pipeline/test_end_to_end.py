@@ -264,6 +264,14 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
         assert len(person["joints_px"]) == 2 * 31 and len(person["joints_visible"]) == 31
         assert json.loads(row["scene"])["floor"] is True
     assert max(r["num_people"] for r in rows) > 1
+    # the preview adds the instance and class images for scenes
+    from PIL import Image
+
+    from vhgen.preview import contact_sheet
+
+    sheet = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "s.png",
+                                                num_frames=2)))
+    assert sheet.shape[1] >= 4 * 320
     # objects that did not fit are counted, in the summary and per frame
     for k in ("people", "props"):
         assert summary["dropped"][k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)

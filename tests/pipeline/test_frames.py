@@ -128,3 +128,23 @@ def test_scene_options_do_not_shift_the_camera_or_the_noise(tmp_path):
     assert a.noise_state == b.noise_state and b.room is not None
     g0.close()
     g1.close()
+
+
+def test_shadows_land_on_walls_and_holes_keep_their_class(tmp_path):
+    """The sensor runs on the whole scene: projector shadows fall on the wall and floor
+    behind people, and a hole keeps the class (and instance) of the surface behind it."""
+    _, _, plan, gen = _generator(tmp_path, "kinect_v1_exact_shadows",
+                                 "scene: {floor: true, room: {depth_m: [4.5, 5]}}")
+    shadow_on_scene = 0
+    for f in range(0, plan.num_frames, 3):
+        o = gen.render(gen.describe(f))
+        holes = o.depth_mm == 0
+        assert (o.classes[holes] != 0).mean() > 0.9  # a room: holes are on surfaces
+        # the three id images moved together with the pixels
+        assert ((o.labels > 0) == (o.classes == PERSON)).all()
+        assert ((o.instances > 0) == (o.classes == PERSON)).all()
+        shadow_on_scene += json.loads(o.record.holes)["shadow"]
+        # shadow holes sit beside people on the wall/floor: some holes not on a person
+        assert (holes & ((o.classes == WALL) | (o.classes == FLOOR))).any()
+    assert shadow_on_scene > 0
+    gen.close()
