@@ -19,7 +19,8 @@ and noisy: compare the ratios, not the absolute numbers across runs):
   steady time per frame. It counts Ray start, actor set-up, kernel loading, planning,
   the merge and Ray shutdown: everything that does not grow with the frames. Only
   ``JobConfig.load`` and ``run_job(cfg, out)`` are used, so the same command measures
-  an older checkout (``PYTHONPATH=/path/to/old/checkout``) side by side.
+  an older checkout (``PYTHONPATH=/path/to/old/checkout``) side by side. The in-run rows
+  (this version) subtract the frames at the workers' own steady rate from one job.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +43,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60, help="frames for the per-stage timings")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
     ap.add_argument("--no-e2e", action="store_true", help="skip the Ray end-to-end run")
+    ap.add_argument("--scene", default=str(REPO / "configs" / "scenes" / "living_room.yaml"),
+                    help="a scene config whose frames are timed beside --config's, "
+                         "interleaved (target: at most 1.3x); '' to skip")
     ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
@@ -48,9 +53,9 @@ def main() -> None:
     if args.startup:
         from vhgen.config import JobConfig
 
-        cfg = JobConfig.load(args.config, backend=args.backend)
-        print_rows(fixed_cost(cfg, args.steps), f"vhgen fixed cost: config {cfg.name}, "
-                   f"backend {cfg.backend}, {cfg.num_workers} workers, {os.cpu_count()} CPUs")
+        jc = JobConfig.load(args.config, backend=args.backend)
+        print_rows(fixed_cost(jc, args.steps), f"vhgen fixed cost: config {jc.name}, "
+                   f"backend {jc.backend}, {jc.num_workers} workers, {os.cpu_count()} CPUs")
         return
 
     from vhgen.assets import resolve_asset_dir
@@ -93,7 +98,8 @@ def main() -> None:
     from vhgen.body.skinning import bone_matrices
     from vhgen.pipeline.frames import sample_camera
 
-    b = gen._body(0)
+    b = gen.describer.body(0)
+    gen.renderer.set_mesh(b.vertices, b.faces, b.joints, b.weights, b.face_labels, b.num_bones)
     gen.renderer.render(np.broadcast_to(np.eye(4), (b.num_bones, 4, 4)))  # warm up
     depths = []
     t = time.perf_counter()
@@ -101,7 +107,7 @@ def main() -> None:
         p = int(plan.pose_index[f])
         cam = sample_camera(np.random.default_rng(int(plan.seeds[f])), cfg.camera)
         mats = bone_matrices(b.rig, poses.rotations[p], poses.roots[p] * np.array([0, 1, 0]))
-        d, _ = gen.renderer.render(cam["world_to_camera"] @ mats)
+        d, _ = gen.renderer.render(cam.world_to_camera @ mats)
         depths.append(d)
     rows.append(("skin+render (1 process)", n, time.perf_counter() - t))
 
@@ -118,19 +124,25 @@ def main() -> None:
     out_rows = [gen.render_frame(int(f)) for f in frames[: cfg.frames_per_shard]]
     t_full = time.perf_counter() - t
     rows.append(("frame (render+sensor+meta)", len(out_rows), t_full))
+    ratio = None
+    if args.scene:
+        ratio = _scene_rows(args.scene, args.backend, gen, frames, rows, asset_dir)
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
         create_store(store, num_frames=k * 4, height=s.intrinsics.height,
                      width=s.intrinsics.width, frames_per_shard=k,
                      compression_level=cfg.compression_level, attrs={})
-        dep = np.stack([r[0] for r in out_rows])
-        lab = np.stack([r[1] for r in out_rows])
+        dep = np.stack([r.depth_mm for r in out_rows])
+        lab = np.stack([r.labels for r in out_rows])
+        ids = {"instances": np.stack([r.instances for r in out_rows]),
+               "classes": np.stack([r.classes for r in out_rows])}
         t = time.perf_counter()
         for shard in range(4):
-            write_shard(store, shard, k, dep, lab, None)
-            meta = [dict(r[2], frame=shard * k + i, shard=shard) for i, r in enumerate(out_rows)]
-            write_part(store, shard, meta, len(meta[0]["joints_cam"]) // 3)
+            write_shard(store, shard, k, dep, lab, None, extra=ids)
+            meta = [replace(r.record, frame=shard * k + i, shard=shard)
+                    for i, r in enumerate(out_rows)]
+            write_part(store, shard, meta, len(meta[0].joints_cam) // 3)
         rows.append(("write (zarr shard + manifest)", 4 * k, time.perf_counter() - t))
         mb = sum(p.stat().st_size for p in store.rglob("*") if p.is_file()) / 1e6
     gen.close()
@@ -146,16 +158,56 @@ def main() -> None:
                      summary["render_seconds"]))
         rows += fixed_cost(cfg, args.steps)
 
-    print_rows(rows, f"vhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
-               f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
-    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth+labels, zstd "
-          f"{cfg.compression_level})")
+    print(f"\nvhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
+          f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
+    print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
+    for name, count, sec in rows:
+        print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
+    print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
+          f"instances, classes; zstd {cfg.compression_level})")
+    if ratio is not None:
+        print(f"scene frame / person-only frame: {ratio[0]:.2f}x as configured, "
+              f"{ratio[1]:.2f}x with one person (target <= 1.3x)")
+
+
+def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, float]:
+    """Frames of the scene config timed interleaved with the person-only generator's
+    (same process, same machine state): rows for both and their ratios."""
+    from vhgen.config import JobConfig
+    from vhgen.pipeline.frames import local_generator
+
+    full = JobConfig.load(scene_path, backend=backend)
+    # the same room and props with exactly one person: what the scene itself costs
+    one = replace(full, scene=replace(full.scene, people=(1, 1)))
+    gens = [local_generator(c, asset_dir, context=gen.ctx)[0] for c in (full, one)]
+    plan = gens[0].describer.plan
+    num_frames = len(plan["seeds"])
+    for g in gens:
+        for f in range(min(4, num_frames)):  # avatars built and resident
+            g.render_frame(f)
+    t_person = 0.0
+    t_scene = [0.0, 0.0]
+    people = 0
+    for i, f in enumerate(frames):
+        t = time.perf_counter()
+        gen.render_frame(int(f))
+        t_person += time.perf_counter() - t
+        for k, g in enumerate(gens):
+            t = time.perf_counter()
+            out = g.render_frame(i % num_frames)
+            t_scene[k] += time.perf_counter() - t
+            people += out.record.num_people if k == 0 else 0
+    for g in gens:
+        g.close()
+    n = len(frames)
+    rows.append(("frame, person only (interleaved)", n, t_person))
+    rows.append((f"frame, {full.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
+    rows.append((f"frame, {full.name} with 1 person (interleaved)", n, t_scene[1]))
+    return t_scene[0] / t_person, t_scene[1] / t_person
 
 
 def fixed_cost(cfg, steps) -> list[tuple[str, int, float]]:
     """Rows: the two timed jobs, the steady time per frame and the fixed cost (intercept)."""
-    from dataclasses import replace
-
     import vhgen
     from vhgen.pipeline.driver import run_job
 

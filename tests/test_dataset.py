@@ -23,19 +23,19 @@ def truth(small_store):
     import zarr
 
     g = zarr.open_group(str(small_store), mode="r")
-    return {"depth": g["depth"][:], "labels": g["labels"][:], "raw": g["raw"][:],
+    return {**{k: g[k][:] for k in ("depth", "labels", "raw", "classes", "instances")},
             "manifest": pq.read_table(small_store / "manifest.parquet")}
 
 
 def test_random_access_matches_zarr_and_manifest(small_store, truth):
     ds = vd.open(small_store)
-    assert len(ds) == 8 and ds.arrays == ("depth", "labels", "raw")
+    assert len(ds) == 8 and ds.arrays == ("depth", "labels", "raw", "classes", "instances")
     assert ds.label_names[0] == "LU_head" and len(ds.label_names) == 31
     for i in (5, 0, 7, 3, -1):  # out of shard order, and a negative index
         item = ds[i]
         f = i % 8
         assert item["frame"] == f
-        for name in ("depth", "labels", "raw"):
+        for name in ("depth", "labels", "raw", "classes", "instances"):
             assert item[name].dtype == truth[name].dtype
             assert np.array_equal(item[name], truth[name][f])
         row = truth["manifest"].slice(f, 1).to_pylist()[0]

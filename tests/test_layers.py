@@ -21,6 +21,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("errors", "yamlio"),
     ("rotations", "camera", "assets"),
     ("mocap", "body", "sensor"),
+    ("scene",),
     ("config", "cliargs"),
     ("store",),
     ("render", "preview"),

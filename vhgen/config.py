@@ -10,9 +10,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from vhgen.body.shape import ShapeSampler
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
+from vhgen.scene.config import (
+    BEHIND_M,
+    CAMERA_CLEARANCE_M,
+    PERSON_CLEARANCE_M,
+    PropsConfig,
+    RoomConfig,
+    SceneConfig,
+)
+from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, find_config, load_yaml
 
@@ -61,6 +72,20 @@ class CameraConfig:
     look_at_height_m: tuple[float, float] = (0.85, 1.0)
     near_m: float = 0.1
     far_m: float = 20.0
+    # a mounted camera (set by pitch_deg or a preset): level, turned towards the subject,
+    # tilted down by pitch (degrees, + = towards the floor) and rolled about its axis;
+    # look_at_height_m is then unused. None = the camera looks at the subject (above).
+    pitch_deg: tuple[float, float] | None = None
+    roll_deg: tuple[float, float] = (0.0, 0.0)
+
+
+# How users mount the camera: a Kinect on top of a TV, a robot's head camera.
+CAMERA_PRESETS: dict[str, dict[str, Any]] = {
+    "tv_top_kinect": {"height_m": [1.0, 1.6], "pitch_deg": [5, 20], "roll_deg": [-2, 2],
+                      "distance_m": [2.0, 3.5], "yaw_deg": [-45, 45]},
+    "robot_head": {"height_m": [1.1, 1.6], "pitch_deg": [5, 25], "roll_deg": [-5, 5],
+                   "distance_m": [1.8, 3.2], "yaw_deg": [-90, 90]},
+}
 
 
 @dataclass(frozen=True)
@@ -105,6 +130,7 @@ class JobConfig:
     backend: str
     skinning: str
     num_workers: int
+    scene: SceneConfig = field(default_factory=SceneConfig)
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
@@ -116,7 +142,7 @@ class JobConfig:
         path = find_config("scenes", path)
         d = load_yaml(path)
         top = {"name", "seed", "motions", "retarget", "labels", "sensor", "assets", "poses",
-               "avatars", "camera", "output", "render", "num_workers", "description"}
+               "avatars", "camera", "output", "render", "num_workers", "description", "scene"}
         check_keys(d, top, {"name", "motions"}, path, "")
         motions = d["motions"]
         if isinstance(motions, str):
@@ -158,17 +184,8 @@ class JobConfig:
                                     default=0.0),
             skirt_probability=_num(av, "skirt_probability", path, "avatars.", lo=0, hi=1,
                                    default=0.0))
-        ca = d.get("camera") or {}
-        cd = CameraConfig()
-        check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m",
-                        "far_m"}, set(), path, "camera.")
-        camera = CameraConfig(
-            _range(ca, "distance_m", path, "camera.", cd.distance_m, lo=0.1, hi=60),
-            _range(ca, "height_m", path, "camera.", cd.height_m, lo=-10, hi=10),
-            _range(ca, "yaw_deg", path, "camera.", cd.yaw_deg, lo=-360, hi=360),
-            _range(ca, "look_at_height_m", path, "camera.", cd.look_at_height_m, lo=-10, hi=10),
-            _num(ca, "near_m", path, "camera.", lo=1e-3, default=cd.near_m),
-            _num(ca, "far_m", path, "camera.", lo=0.5, default=cd.far_m))
+        camera = _camera(d.get("camera") or {}, path)
+        scene = _scene(d.get("scene") or {}, path, camera)
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}
@@ -213,6 +230,7 @@ class JobConfig:
             sensor = SensorConfig.load(refs["sensor"])
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
+        _check_camera_sees(camera, sensor.intrinsics, path)
         assets = d.get("assets")
         if assets is not None:
             assets = str((path.parent / Path(assets).expanduser()).resolve())
@@ -226,5 +244,142 @@ class JobConfig:
                                   integer=True, default=16),
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True, default=3),
-            backend=backend, skinning=skinning, num_workers=num_workers, source=str(path),
-            gpus_per_worker=gpus)
+            backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
+            source=str(path), gpus_per_worker=gpus)
+
+
+def _camera(ca: dict, src) -> CameraConfig:
+    cd = CameraConfig()
+    check_keys(ca, {"distance_m", "height_m", "yaw_deg", "look_at_height_m", "near_m", "far_m",
+                    "pitch_deg", "roll_deg", "preset"}, set(), src, "camera.")
+    preset = ca.get("preset")
+    if preset is not None:
+        if preset not in CAMERA_PRESETS:
+            raise ConfigError(src, "camera.preset", f"unknown preset {preset!r}; choose one of "
+                              f"{', '.join(CAMERA_PRESETS)}")
+        ca = {**CAMERA_PRESETS[preset], **{k: v for k, v in ca.items() if k != "preset"}}
+    camera = CameraConfig(
+        _range(ca, "distance_m", src, "camera.", cd.distance_m, lo=0.1, hi=60),
+        _range(ca, "height_m", src, "camera.", cd.height_m, lo=-10, hi=10),
+        _range(ca, "yaw_deg", src, "camera.", cd.yaw_deg, lo=-360, hi=360),
+        _range(ca, "look_at_height_m", src, "camera.", cd.look_at_height_m, lo=-10, hi=10),
+        _num(ca, "near_m", src, "camera.", lo=1e-3, default=cd.near_m),
+        _num(ca, "far_m", src, "camera.", lo=0.5, default=cd.far_m),
+        _range(ca, "pitch_deg", src, "camera.", (0.0, 0.0), lo=-80, hi=80)
+        if "pitch_deg" in ca else None,
+        _range(ca, "roll_deg", src, "camera.", cd.roll_deg, lo=-45, hi=45))
+    if camera.roll_deg != (0.0, 0.0) and camera.pitch_deg is None:
+        raise ConfigError(src, "camera.roll_deg", "needs pitch_deg (a mounted camera)")
+    return camera
+
+
+# a standing person's body centre, metres above the floor, for the visibility check
+_BODY_CENTRE_M = 0.9
+
+
+def _check_camera_sees(camera: CameraConfig, intr, src) -> None:
+    """Load-time: some camera in the configured ranges sees the subject's body centre."""
+    if camera.distance_m[0] >= camera.far_m:
+        raise ConfigError(src, "camera.distance_m", f"the camera is never nearer than "
+                          f"{camera.distance_m[0]} m, beyond far_m {camera.far_m} m: it can "
+                          "never see a person")
+    if camera.pitch_deg is None:
+        return  # it looks at the subject
+    half_v = np.degrees(np.arctan2(intr.height / 2, intr.fy))
+    h = np.linspace(*camera.height_m, 9)[:, None, None]
+    dist = np.linspace(*camera.distance_m, 9)[None, :, None]
+    pitch = np.linspace(*camera.pitch_deg, 9)[None, None, :]
+    below = np.degrees(np.arctan2(h - _BODY_CENTRE_M, dist))  # angle under the horizon
+    if (np.abs(below - pitch) > half_v).all():
+        raise ConfigError(src, "camera.pitch_deg", f"with height_m {list(camera.height_m)} "
+                          f"and distance_m {list(camera.distance_m)}, no pitch in "
+                          f"{list(camera.pitch_deg)} puts a person's body (0.9 m above the "
+                          f"floor) in the {2 * half_v:.0f} deg vertical view: it can never "
+                          "see a person")
+
+
+def _int_range(d: dict, key: str, src, prefix: str, default: tuple[int, int], lo: int,
+               hi: int) -> tuple[int, int]:
+    a, b = _range(d, key, src, prefix, (float(default[0]), float(default[1])), lo=lo, hi=hi)
+    if a != int(a) or b != int(b):
+        raise ConfigError(src, prefix + key, f"must be integers, got {d[key]!r}")
+    return int(a), int(b)
+
+
+def _props(d: Any, src) -> PropsConfig:
+    if d is True:
+        d = {}
+    check_keys(d, {"count", "kinds", "meshes", "occlusion"}, set(), src, "scene.props.")
+    pd = PropsConfig()
+    kinds = d.get("kinds", list(pd.kinds))
+    if not isinstance(kinds, list) or not all(k in PARAMETRIC for k in kinds):
+        raise ConfigError(src, "scene.props.kinds", f"must be a list of {', '.join(PARAMETRIC)}"
+                          f", got {kinds!r}")
+    meshes = []
+    for i, m in enumerate(d.get("meshes") or []):
+        field = f"scene.props.meshes[{i}]"
+        if isinstance(m, str):
+            m = {"path": m}
+        if not isinstance(m, dict):
+            raise ConfigError(src, field, f"must be a path or {{path, scale}}, got {m!r}")
+        check_keys(m, {"path", "scale"}, {"path"}, src, field + ".")
+        scale = _num(m, "scale", src, field + ".", lo=1e-4, hi=1e4, default=1.0)
+        path = Path(str(m["path"])).expanduser()
+        if not path.is_absolute() and src is not None:
+            path = Path(src).parent / path
+        meshes.append(load_mesh(path, scale, src, field + ".path"))
+    if not kinds and not meshes:
+        raise ConfigError(src, "scene.props.kinds", "no kinds and no meshes: nothing to place")
+    return PropsConfig(_int_range(d, "count", src, "scene.props.", pd.count, 0, 64),
+                       tuple(kinds), tuple(meshes),
+                       _range(d, "occlusion", src, "scene.props.", pd.occlusion, lo=0, hi=1))
+
+
+def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
+    """The ``scene:`` section; checks at load time that a room can hold the people, the
+    props and the camera at its farthest distance."""
+    check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction"}, set(), src,
+               "scene.")
+    floor = d.get("floor", False)
+    if not isinstance(floor, bool):
+        raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
+    people = _int_range(d, "people", src, "scene.", (1, 1), 1, 32)
+    props = None
+    if d.get("props") not in (None, False):
+        props = _props(d["props"], src)
+    room = None
+    r = d.get("room")
+    if r is not None and r is not False:
+        if r is True:
+            r = {}
+        if not isinstance(r, dict):
+            raise ConfigError(src, "scene.room", f"must be a mapping (or false), got {r!r}")
+        rd = RoomConfig()
+        check_keys(r, {"width_m", "depth_m", "height_m", "yaw_deg"}, set(), src, "scene.room.")
+        room = RoomConfig(
+            _range(r, "width_m", src, "scene.room.", rd.width_m, lo=0.5, hi=100),
+            _range(r, "depth_m", src, "scene.room.", rd.depth_m, lo=0.5, hi=100),
+            _range(r, "height_m", src, "scene.room.", rd.height_m, lo=1.0, hi=20),
+            _range(r, "yaw_deg", src, "scene.room.", rd.yaw_deg, lo=-90, hi=90))
+        need_w = 2 * PERSON_CLEARANCE_M
+        need_d = (camera.distance_m[1] + PERSON_CLEARANCE_M + CAMERA_CLEARANCE_M
+                  + (BEHIND_M if people[1] > 1 else 0.0))
+        if room.width_m[1] < need_w:
+            raise ConfigError(src, "scene.room.width_m", f"room too small: at most "
+                              f"{room.width_m[1]} m wide, a person needs {need_w:.1f} m")
+        if room.depth_m[1] < need_d:
+            raise ConfigError(src, "scene.room.depth_m", f"room too small: at most "
+                              f"{room.depth_m[1]} m deep, but camera.distance_m reaches "
+                              f"{camera.distance_m[1]} m (needs {need_d:.1f} m with clearances)")
+        # footprints asked for must fit in half the largest room's floor, or most frames
+        # would drop people or props
+        n_props = props.count[1] if props is not None else 0
+        need_area = np.pi * (people[1] * PERSON_CLEARANCE_M ** 2 + n_props * 0.6 ** 2)
+        area = room.width_m[1] * room.depth_m[1]
+        if area < 2 * need_area:
+            raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
+                              f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
+                              f"about {2 * need_area:.1f} m^2")
+    return SceneConfig(floor=floor, room=room, people=people, props=props,
+                       min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
+                                                 lo=0.0, hi=1.0, default=0.5))

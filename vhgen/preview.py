@@ -34,9 +34,35 @@ def colorize_depth(depth_mm: np.ndarray) -> np.ndarray:
     return rgb
 
 
+# scene classes (background, floor, wall, prop, person, then user classes) and instances
+CLASS_COLORS = np.array([[0, 0, 0], [196, 170, 120], [120, 140, 170], [150, 90, 40],
+                         [240, 90, 160], [90, 200, 90], [220, 220, 60], [60, 200, 220]],
+                        np.uint8)
+INSTANCE_COLORS = np.array([[0, 0, 0], [230, 25, 75], [60, 180, 75], [0, 130, 200],
+                            [245, 130, 48], [145, 30, 180], [70, 240, 240], [240, 50, 230]],
+                           np.uint8)
+
+
+def _scene_tiles(root, frames: list[int]) -> bool:
+    """Whether to show the instance and class images: the store has them and the frames
+    shown have more than one person or anything besides people."""
+    if "instances" not in root or "classes" not in root:
+        return False
+    names = list(root.attrs.get("class_names", []))
+    person = names.index("person") if "person" in names else -1
+    for f in frames:
+        if (np.asarray(root["instances"][f]) > 1).any():
+            return True
+        c = np.asarray(root["classes"][f])
+        if ((c != 0) & (c != person)).any():
+            return True
+    return False
+
+
 def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
                   frames: list[int] | None = None, scale: float = 0.5) -> Path:
-    """Write a PNG with up to ``num_frames`` evenly spaced frames (depth | labels) + legend."""
+    """Write a PNG with up to ``num_frames`` evenly spaced frames (depth | labels, and
+    instances | classes for scenes) + legend."""
     from PIL import Image, ImageDraw, ImageFont
 
     root = open_store(store)
@@ -48,10 +74,12 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         frames = sorted(set(np.linspace(0, n - 1, min(num_frames, n)).round().astype(int)))
     h, w = depth.shape[1:]
     th, tw = int(h * scale), int(w * scale)
-    cols = 2
+    scene = _scene_tiles(root, frames)
+    cols = 4 if scene else 2
     rows = len(frames)
     legend_w = 190
-    sheet = Image.new("RGB", (cols * tw + legend_w, max(rows * (th + 16), 14 * len(names) + 40)),
+    sheet = Image.new("RGB", (cols * tw + legend_w,
+                              max(rows * (th + 16), 14 * len(names) + 40 + (110 if scene else 0))),
                       (255, 255, 255))
     draw = ImageDraw.Draw(sheet)
     font = ImageFont.load_default()
@@ -59,9 +87,16 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         d = np.asarray(depth[f])
         lab = np.asarray(labels[f])
         tiles = [colorize_depth(d), palette[np.minimum(lab, len(palette) - 1)]]
+        titles = ["depth (mm)", "labels"]
+        if scene:
+            inst = np.asarray(root["instances"][f])
+            cls = np.asarray(root["classes"][f])
+            tiles += [INSTANCE_COLORS[np.where(inst == 0, 0, (inst - 1) % 7 + 1)],
+                      CLASS_COLORS[np.minimum(cls, len(CLASS_COLORS) - 1)]]
+            titles += ["instances", "classes"]
         y = r * (th + 16)
-        draw.text((4, y + 2), f"frame {f}: depth (mm)", fill=(0, 0, 0), font=font)
-        draw.text((tw + 4, y + 2), f"frame {f}: labels", fill=(0, 0, 0), font=font)
+        for c, title in enumerate(titles):
+            draw.text((c * tw + 4, y + 2), f"frame {f}: {title}", fill=(0, 0, 0), font=font)
         for c, tile in enumerate(tiles):
             img = Image.fromarray(tile).resize((tw, th), Image.Resampling.NEAREST)
             sheet.paste(img, (c * tw, y + 14))
@@ -71,6 +106,14 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         y = 20 + (k - 1) * 14
         draw.rectangle([x0, y, x0 + 12, y + 10], fill=tuple(int(c) for c in palette[k]))
         draw.text((x0 + 18, y - 1), f"{k:2d} {name}", fill=(0, 0, 0), font=font)
+    if scene:
+        y = 20 + len(names) * 14 + 10
+        draw.text((x0, y), "classes", fill=(0, 0, 0), font=font)
+        for k, name in enumerate(root.attrs.get("class_names", [])[1:len(CLASS_COLORS)], 1):
+            yy = y + 16 + (k - 1) * 14
+            draw.rectangle([x0, yy, x0 + 12, yy + 10], fill=tuple(int(c) for c in
+                                                                 CLASS_COLORS[k]))
+            draw.text((x0 + 18, yy - 1), name, fill=(0, 0, 0), font=font)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(out)

@@ -46,7 +46,7 @@ def smoke(tmp_path_factory, shared_mocap, asset_dir):
 
 def _store_files(path: Path) -> dict[str, bytes]:
     return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*"))
-            if p.is_file() and ("depth" in p.parts or "labels" in p.parts)}
+            if p.is_file() and {"depth", "labels", "instances", "classes"} & set(p.parts)}
 
 
 def test_contract(smoke, shared_mocap):
@@ -77,6 +77,13 @@ def test_contract(smoke, shared_mocap):
     assert sum(m["poses_kept"] for m in motions.values()) == summary["poses"]
     d = depth[:]
     lab = labels[:]
+    # scene arrays, read with plain zarr: one person, no geometry in this config
+    inst, cls = g["instances"][:], g["classes"][:]
+    assert inst.shape == cls.shape == (10, 480, 640)
+    assert inst.dtype == cls.dtype == np.uint8
+    assert g.attrs["class_names"][:5] == ["background", "floor", "wall", "prop", "person"]
+    person = g.attrs["class_names"].index("person")
+    assert ((inst == 1) == (lab > 0)).all() and ((cls == person) == (lab > 0)).all()
     for f in range(10):
         body = lab[f] > 0
         assert body.sum() > 5000, f  # a person fills part of every frame
@@ -105,6 +112,8 @@ def test_contract(smoke, shared_mocap):
     raw = g["raw"][:]
     assert raw.dtype == np.uint16 and ((raw == 2047) == (d == 0)).all()
     assert "scale" in json.loads(row["avatar_params"])
+    assert row["num_people"] == 1 and json.loads(row["scene"]) is None
+    assert man.schema.field("num_people").type == "int32"
     joints = np.asarray(row["joints_cam"], np.float32).reshape(31, 3)
     assert 1.5 < joints[0, 2] < 4.5  # hips in front of the camera
 
@@ -207,3 +216,65 @@ def test_cli_info_and_preview(smoke, tmp_path, capsys):
     assert (tmp_path / "p.png").stat().st_size > 10_000
     assert main(["info", str(tmp_path)]) == 2  # not a store: a clear error, exit 2
     assert "not a Zarr v3 group" in capsys.readouterr().err
+
+
+SCENE_JOB = """
+name: scene_smoke
+seed: 7
+motions: [{m}/02_01.bvh]
+sensor: kinect_v1_full
+poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
+avatars: {{count: 2}}
+scene:
+  floor: true
+  room: {{width_m: [4, 6], depth_m: [5.5, 7]}}
+  people: [1, 3]
+  props: {{count: [2, 4]}}
+output: {{frames_per_shard: 2}}
+render: {{backend: osmesa}}
+num_workers: 2
+"""
+
+
+def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_mocap):
+    """A living-room style job through Ray: the new arrays read with plain zarr/pyarrow,
+    and the same bytes with 1 and 2 workers."""
+    import pyarrow.parquet as pq
+    import zarr
+
+    p = tmp_path / "scene.yaml"
+    p.write_text(SCENE_JOB.format(m=shared_mocap))
+    summary = run_job(JobConfig.load(p), tmp_path / "two.zarr")
+    run_job(JobConfig.load(p, num_workers=1), tmp_path / "one.zarr")
+    a, b = _store_files(tmp_path / "two.zarr"), _store_files(tmp_path / "one.zarr")
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+    assert any("instances" in k for k in a) and any("classes" in k for k in a)
+    ma = pq.read_table(tmp_path / "two.zarr" / "manifest.parquet")
+    assert ma.equals(pq.read_table(tmp_path / "one.zarr" / "manifest.parquet"))
+
+    g = zarr.open_group(str(tmp_path / "two.zarr"), mode="r")
+    names = g.attrs["class_names"]
+    lab, inst, cls = g["labels"][:], g["instances"][:], g["classes"][:]
+    assert inst.dtype == cls.dtype == np.uint8 and inst.shape == lab.shape
+    assert ((lab > 0) == (cls == names.index("person"))).all()
+    present = set(np.unique(cls).tolist())
+    assert {names.index(c) for c in ("floor", "wall", "person")} <= present
+    rows = ma.to_pylist()
+    for f, row in enumerate(rows):
+        assert row["num_people"] == len(row["people"]) >= 1
+        assert set(np.unique(inst[f]).tolist()) <= set(range(row["num_people"] + 1))
+        person = row["people"][0]
+        assert len(person["joints_px"]) == 2 * 31 and len(person["joints_visible"]) == 31
+        assert json.loads(row["scene"])["floor"] is True
+    assert max(r["num_people"] for r in rows) > 1
+    # the preview adds the instance and class images for scenes
+    from PIL import Image
+
+    from vhgen.preview import contact_sheet
+
+    sheet = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "s.png",
+                                                num_frames=2)))
+    assert sheet.shape[1] >= 4 * 320
+    # objects that did not fit are counted, in the summary and per frame
+    for k in ("people", "props"):
+        assert summary["dropped"][k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)

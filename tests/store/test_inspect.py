@@ -30,7 +30,7 @@ def test_clean_store_has_no_defects_and_a_histogram(small_store, capsys):
     rep = inspect_store(small_store)
     assert rep.defects == []
     assert rep.num_frames == 8 and rep.frames_per_shard == 3 and rep.frames_checked == 8
-    assert set(rep.arrays) == {"depth", "labels", "raw"}
+    assert set(rep.arrays) == {"depth", "labels", "raw", "instances", "classes"}
     g = zarr.open_group(str(small_store), mode="r")
     labels = g["labels"][:]
     # the histogram is the exact pixel count per part over every frame
@@ -100,9 +100,33 @@ def test_changed_label_pixel(damaged, capsys):
     lab[1, ys[0], xs[0]] = 7  # one background pixel becomes R_shoulder
     g["labels"][3:6] = lab
     body = int(pq.read_table(damaged / "manifest.parquet").column("body_pixels")[4].as_py())
+    where = "frame 4 (shard 1 (frames 3-5))"
     assert _defects(damaged, capsys) == [
-        f"DEFECT frame 4 (shard 1 (frames 3-5)): labels have {body + 1} body pixels, "
-        f"manifest body_pixels says {body}"]
+        f"DEFECT {where}: labels have {body + 1} body pixels, manifest body_pixels says {body}",
+        f"DEFECT {where}: instances and labels disagree on 1 pixels (person without body "
+        "part or the reverse)",
+        f"DEFECT {where}: classes and labels disagree on 1 pixels (person class without body "
+        "part or the reverse)"]
+
+
+def test_instances_and_classes_checked_against_labels(damaged, capsys):
+    import zarr
+
+    g = zarr.open_group(str(damaged), mode="r+")
+    inst = g["instances"][0:3]
+    ys, xs = np.nonzero(inst[1] > 0)
+    inst[1, ys[:5], xs[:5]] = 0  # five person pixels lose their instance
+    inst[2][inst[2] > 0] = 3  # frame 2 has one person, not three
+    g["instances"][0:3] = inst
+    cls = g["classes"][6:8]
+    cls[0, 0, 0] = 9  # no such class
+    g["classes"][6:8] = cls
+    assert _defects(damaged, capsys) == [
+        "DEFECT frame 1 (shard 0 (frames 0-2)): instances and labels disagree on 5 pixels "
+        "(person without body part or the reverse)",
+        "DEFECT frame 2 (shard 0 (frames 0-2)): instance 3 but the manifest row has "
+        "num_people 1",
+        "DEFECT frame 6 (shard 2 (frames 6-7)): class 9 is not in class_names (0..4)"]
 
 
 def test_changed_depth_pixel_and_out_of_range_label(damaged, capsys):
@@ -118,8 +142,11 @@ def test_changed_depth_pixel_and_out_of_range_label(damaged, capsys):
     lines = _defects(damaged, capsys)
     assert lines[0] == "DEFECT labels shard 0 (frames 0-2): label 200 > K=31 in frames 2"
     assert lines[1].startswith("DEFECT frame 2 (shard 0 (frames 0-2)): labels have")
-    assert lines[2].startswith("DEFECT frame 7 (shard 2 (frames 6-7)): depth has 0 valid")
-    assert len(lines) == 3
+    # the stray label also has no person instance or class under it
+    assert lines[2].startswith("DEFECT frame 2 (shard 0 (frames 0-2)): instances and labels")
+    assert lines[3].startswith("DEFECT frame 2 (shard 0 (frames 0-2)): classes and labels")
+    assert lines[4].startswith("DEFECT frame 7 (shard 2 (frames 6-7)): depth has 0 valid")
+    assert len(lines) == 5
 
 
 def test_missing_manifest_and_part(damaged, capsys):

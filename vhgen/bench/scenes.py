@@ -14,12 +14,15 @@ import numpy as np
 
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import build_body
-from vhgen.body.skinning import bone_matrices
+from vhgen.body.skinning import bone_matrices, posed_heads
 from vhgen.camera import Intrinsics, look_at, pixel_rays
 from vhgen.errors import RenderError
 from vhgen.mocap.bvh import read_bvh
 from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
 from vhgen.render.renderer import DepthLabelRenderer
+from vhgen.render.scene import SceneRenderer
+from vhgen.scene.description import CameraPose, FrameDescription, Person
+from vhgen.scene.geometry import WALL, StaticMesh, quad
 
 
 @dataclass(frozen=True)
@@ -103,41 +106,34 @@ def suite(intr: Intrinsics, baseline: float, quick: bool = False) -> list[Frame]
 
 def human_frame(ctx, intr: Intrinsics, baseline: float, asset_dir, motion_path,
                 frame: int = 100, distance: float = 2.5, wall: float | None = 3.5) -> Frame:
-    """A posed MakeHuman body (GL) in front of an analytic wall (``wall=None``: alone)."""
+    """A posed MakeHuman body in front of a wall facing the camera at ``wall`` metres
+    (``wall=None``: alone), drawn through the pipeline's render step
+    (:class:`~vhgen.render.scene.SceneRenderer`): person and wall in one target."""
     body = build_body(asset_dir, LabelScheme.load("shotton31"))
     motion = read_bvh(motion_path)
     rt = build_retargeter(motion, body.rig, detect_dialect(motion, load_all_maps()))
     rot, root = rt.apply(motion, frames=np.array([frame]))
     root = root[0] - np.array([root[0, 0], 0.0, root[0, 2]])
-    mats = bone_matrices(body.rig, rot[0], root)
+    person = Person(1, 0, 0, bone_matrices(body.rig, rot[0], root),
+                    posed_heads(body.rig, rot[0], root), np.zeros(3))
     w2c = look_at(np.array([0, 1.0, distance]), np.array([0, 0.9, 0]))
+    static: tuple[StaticMesh, ...] = ()
+    if wall is not None:  # a quad far wider than the view, at camera depth ``wall``
+        c2w = np.linalg.inv(w2c)
+        h = 50.0
+        corners = np.array([[-h, -h, wall], [h, -h, wall], [h, h, wall], [-h, h, wall]])
+        static = (quad(corners @ c2w[:3, :3].T + c2w[:3, 3], WALL, "wall"),)
+    desc = FrameDescription(frame, 0, CameraPose(w2c, 0.0, distance, 1.0), (person,), static,
+                            None, np.random.PCG64(0).state)
     ren = DepthLabelRenderer(ctx, intr, normals=True)
-    ren.set_mesh(body.vertices, body.faces, body.joints, body.weights, body.face_labels,
-                 body.num_bones)
-    d, lab = ren.render(w2c @ mats)
-    nrm = ren.normals
-    if nrm is None:
-        raise RenderError("the renderer returned no normals")
-    w2p = w2c.copy()
-    w2p[0, 3] -= baseline
-    pd, _ = ren.render(w2p @ mats)
+    scene = SceneRenderer(ren, lambda _avatar: body)
+    views = scene.render(desc, projector_baseline_m=baseline)
+    scene.release()
     ren.release()
-    if wall is None:  # nothing behind the person: no hit there
-        wd = np.full(d.shape, np.inf)
-        wn = np.zeros(d.shape + (3,))
-        wpd = np.full(d.shape, np.inf)
-    else:
-        wd, _, wn = cast(intr, [Rect(wall, label=0)])
-        wpd, _, _ = cast(intr, [Rect(wall)], origin_x=baseline)
-    d = d.astype(np.float64)
-    use_body = (d > 0) & (d < wd)
-    depth = np.where(use_body, d, wd)
-    normals = np.where(use_body[..., None], nrm, wn)
-    pd = pd.astype(np.float64)
-    proj = np.where((pd > 0) & (pd < wpd), pd, wpd)
-    labels = np.where(use_body, lab, 0).astype(np.uint8)
-    depth = np.where(np.isfinite(depth), depth, 0.0)
-    proj = np.where(np.isfinite(proj), proj, 0.0)
+    cam, proj = views.camera, views.projector_depth
+    if cam.normals is None or proj is None:
+        raise RenderError("the renderer returned no normals or no projector view")
     name = f"human {distance} m" + (f", wall {wall} m" if wall is not None else " alone")
-    return Frame(name, "human", depth, labels, normals.astype(np.float32), proj,
+    return Frame(name, "human", cam.depth.astype(np.float64), cam.labels,
+                 cam.normals.astype(np.float32), proj.astype(np.float64),
                  {"motion": str(motion_path), "frame": frame})

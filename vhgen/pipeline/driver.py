@@ -355,6 +355,9 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             / max(1, len(actors)),
             "store": str(out), "poses": poses.num_poses,
             "retries": sum(attempts.values()) - len(todo),
+            # scene objects that found no place after bounded retries (manifest: scene)
+            "dropped": {k: sum(r.get("dropped", {}).get(k, 0) for r in results)
+                        for k in ("people", "props")},
             "valid_fraction": float(np.mean([r["valid_pixels"] for r in results]) /
                                     (intr.width * intr.height * cfg.frames_per_shard))
             if results else 0.0}

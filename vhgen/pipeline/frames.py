@@ -1,4 +1,9 @@
-"""Frame generation inside one process: body, skinning, rendering, sensor, shard write.
+"""Frame generation inside one process: describe, render, sensor, record, shard write.
+
+Per frame: :class:`~vhgen.pipeline.describe.FrameDescriber` builds the pure description
+from the plan, :class:`~vhgen.render.scene.SceneRenderer` draws its views, the sensor
+model runs on the whole scene, and a :class:`~vhgen.store.record.FrameRecord` (the
+manifest row) is made from the description and the outputs.
 
 :class:`FrameGenerator` owns one GL context (created once, in ``__init__``) and is what a
 Ray actor wraps; it is also used directly by tests and benchmarks without Ray.
@@ -8,35 +13,54 @@ from __future__ import annotations
 
 import json
 import logging
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from vhgen.body.labels import LabelScheme
-from vhgen.body.model import Body, build_body
-from vhgen.body.shape import Shape
-from vhgen.body.skinning import bone_matrices, posed_heads
-from vhgen.camera import look_at
 from vhgen.config import JobConfig
+from vhgen.pipeline.describe import FrameDescriber, sample_camera
+from vhgen.scene.description import FrameDescription, Person
+from vhgen.scene.truth import joint_visibility, project
 from vhgen.sensor.model import SensorModel
 from vhgen.store.manifest import write_part
+from vhgen.store.record import FrameRecord, PersonRecord
 from vhgen.store.zarr_store import write_shard
+
+if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types here
+    from vhgen.render.renderer import View
 
 log = logging.getLogger(__name__)
 
+__all__ = ["FrameGenerator", "FrameOutput", "pack_ids", "sample_camera"]
 
-def sample_camera(rng: np.random.Generator, cfg) -> dict:
-    """Camera placement around the subject's root (first draws of the frame's stream)."""
-    yaw = rng.uniform(*cfg.yaw_deg)
-    dist = rng.uniform(*cfg.distance_m)
-    height = rng.uniform(*cfg.height_m)
-    target_h = rng.uniform(*cfg.look_at_height_m)
-    a = np.deg2rad(yaw)
-    eye = np.array([dist * np.sin(a), height, dist * np.cos(a)])
-    w2c = look_at(eye, np.array([0.0, target_h, 0.0]))
-    return {"yaw_deg": float(yaw), "distance_m": float(dist), "height_m": float(height),
-            "world_to_camera": w2c}
+
+def pack_ids(labels: np.ndarray, instances: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """(H, W) uint32: part label | instance << 8 | class << 16. The sensor moves this one
+    array with the pixels, so the three id images stay aligned with the depth."""
+    return (labels.astype(np.uint32) | (instances.astype(np.uint32) << 8)
+            | (classes.astype(np.uint32) << 16))
+
+
+def unpack_ids(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The inverse of :func:`pack_ids`: labels, instances, classes, (H, W) uint8 each."""
+    return ((packed & 0xFF).astype(np.uint8), ((packed >> 8) & 0xFF).astype(np.uint8),
+            ((packed >> 16) & 0xFF).astype(np.uint8))
+
+
+@dataclass(frozen=True, eq=False)
+class FrameOutput:
+    """One frame's arrays, (H, W) each: depth uint16 mm, labels / instances / classes
+    uint8, raw11 uint16 (or None when the sensor's encoding does not keep it), and the
+    manifest record."""
+
+    depth_mm: np.ndarray
+    labels: np.ndarray
+    instances: np.ndarray
+    classes: np.ndarray
+    raw11: np.ndarray | None
+    record: FrameRecord
 
 
 class FrameGenerator:
@@ -47,15 +71,12 @@ class FrameGenerator:
                  context=None):
         from vhgen.render.context import create_context
         from vhgen.render.renderer import DepthLabelRenderer
+        from vhgen.render.scene import SceneRenderer
 
         self.cfg = cfg
-        self.asset_dir = Path(asset_dir)
-        self.rotations = pose_rotations
-        self.roots = pose_roots
         self.pose_meta = pose_meta
-        self.plan = plan_arrays
-        self.avatars = avatars
-        self.scheme = LabelScheme.load(cfg.labels)
+        self.describer = FrameDescriber(cfg, asset_dir, pose_rotations, pose_roots,
+                                        plan_arrays, avatars)
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
         self.sensor = SensorModel(cfg.sensor)
@@ -63,100 +84,142 @@ class FrameGenerator:
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
                                            normals="normals" in cfg.sensor.needs)
-        self._avatar: tuple[int, Body] | None = None
-        # poses were retargeted onto the unshaped base body; an avatar's root height
-        # scales with its hip height so its feet stay on the floor
-        self._base_hip_drop = build_body(self.asset_dir, self.scheme).hip_drop
+        self.scene = SceneRenderer(self.renderer, self.describer.body)
         self._sensor_json = json.dumps(cfg.sensor.to_dict(), sort_keys=True)
 
-    def _body(self, avatar_id: int) -> Body:
-        """The avatar's body, uploaded to the GPU (one avatar resident at a time)."""
-        if self._avatar is None or self._avatar[0] != avatar_id:
-            params = self.avatars[avatar_id]
-            body = build_body(self.asset_dir, self.scheme, shape=Shape.from_dict(params["shape"]),
-                              scale=params["scale"], clothing=tuple(params["clothing"]))
-            self.renderer.set_mesh(body.vertices, body.faces, body.joints, body.weights,
-                                   body.face_labels, body.num_bones)
-            self._avatar = (avatar_id, body)
-        return self._avatar[1]
+    def describe(self, frame: int) -> FrameDescription:
+        return self.describer.describe(frame)
 
-    def render_frame(self, frame: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any],
-                                                np.ndarray | None]:
-        """depth (H, W) uint16 mm, labels (H, W) uint8, the frame's manifest row, and the
-        raw 11-bit image (H, W) uint16 when the sensor's encoding keeps it (else None)."""
-        avatar_id = int(self.plan["avatar_id"][frame])
-        pose = int(self.plan["pose_index"][frame])
-        seed = int(self.plan["seeds"][frame])
-        rng = np.random.default_rng(seed)
-        body = self._body(avatar_id)
-        rot = self.rotations[pose]
-        root = self.roots[pose] * (body.hip_drop / self._base_hip_drop)
-        # place the subject's root above the world origin; keep height and orientation
-        offset = np.array([-root[0], 0.0, -root[2]])
-        root = root + offset
-        mats = bone_matrices(body.rig, rot, root)
-        cam = sample_camera(rng, self.cfg.camera)
-        w2c = cam["world_to_camera"]
+    def render(self, desc: FrameDescription) -> FrameOutput:
+        """Render, sense and record one described frame."""
         s = self.cfg.sensor
-        depth_f, labels = self.renderer.render(w2c @ mats)
-        normals = self.renderer.normals if self.renderer.want_normals else None
-        proj = None
-        if "projector_depth" in s.needs:
-            # the projector sits at +baseline along the camera's x axis (rectified rig)
-            w2p = w2c.copy()
-            w2p[0, 3] -= s.baseline_m
-            proj, _ = self.renderer.render(w2p @ mats)
-        out = self.sensor.simulate(depth_f, rng, labels=labels, normals=normals,
-                                   projector_depth=proj)
-        depth_mm, valid = out.depth_mm, out.valid
-        if out.labels is not None:  # moved with the pixels by geometric effects
-            labels = out.labels
-        heads = posed_heads(body.rig, rot, root)
-        joints_cam = (heads @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
+        views = self.scene.render(desc, s.baseline_m if "projector_depth" in s.needs
+                                  else None)
+        cam = views.camera
+        packed = pack_ids(cam.labels, cam.instances, cam.classes)
+        out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
+                                   normals=cam.normals, projector_depth=views.projector_depth)
+        labels, instances, classes = unpack_ids(out.labels if out.labels is not None
+                                                else packed)
+        return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
+                           self._record(desc, cam, out.holes, int(out.valid.sum()), labels))
+
+    def render_frame(self, frame: int) -> FrameOutput:
+        """Describe and render frame ``frame`` of the plan."""
+        return self.render(self.describe(frame))
+
+    def _person(self, desc: FrameDescription, person: Person, view: View) -> PersonRecord:
+        """Per-person truth: provenance, placement, 3D/2D joints, visibility against the
+        clean rendered view (before the sensor)."""
+        w2c = desc.camera.world_to_camera
+        joints_cam = person.joints @ w2c[:3, :3].T + w2c[:3, 3]
+        intr = self.cfg.sensor.intrinsics
+        visible = joint_visibility(intr, joints_cam, person.instance, view.depth,
+                                   view.instances)
+        mid = int(self.pose_meta["motion_id"][person.pose_index])
+        return PersonRecord(
+            instance=person.instance, avatar_id=person.avatar_id,
+            motion_file=self.pose_meta["motion_files"][mid],
+            source_frame=int(self.pose_meta["source_frame"][person.pose_index]),
+            pose_index=person.pose_index, placement=person.placement.reshape(-1).tolist(),
+            body_offset=person.offset.tolist(),
+            joints_cam=joints_cam.astype(np.float32).reshape(-1).tolist(),
+            joints_px=np.nan_to_num(project(intr, joints_cam), nan=-1.0).astype(
+                np.float32).reshape(-1).tolist(),
+            joints_visible=visible.tolist(), visible_fraction=float(visible.mean()))
+
+    def _record(self, desc: FrameDescription, view: View, holes: dict, valid_pixels: int,
+                labels: np.ndarray) -> FrameRecord:
+        person = desc.people[0]
+        body = self.describer.body(person.avatar_id)
+        w2c = desc.camera.world_to_camera
+        joints_cam = (person.joints @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
+        pose = person.pose_index
         mid = int(self.pose_meta["motion_id"][pose])
-        intr = s.intrinsics
-        row = {
-            "frame": frame, "shard": -1,
-            "motion_file": self.pose_meta["motion_files"][mid],
-            "motion_sha1": self.pose_meta["motion_sha1"][mid],
-            "source_frame": int(self.pose_meta["source_frame"][pose]),
-            "pose_index": pose, "avatar_id": avatar_id,
-            "avatar_params": json.dumps({**body.params, "skinning": self.cfg.skinning},
-                                        sort_keys=True),
-            "width": intr.width, "height": intr.height, "fx": intr.fx, "fy": intr.fy,
-            "cx": intr.cx, "cy": intr.cy,
-            "world_to_camera": w2c.reshape(-1).tolist(),
-            "camera_distance_m": cam["distance_m"], "camera_yaw_deg": cam["yaw_deg"],
-            "camera_height_m": cam["height_m"],
-            "body_offset": offset.tolist(),
-            "joints_cam": joints_cam.reshape(-1).tolist(),
-            "seed": seed,
-            "sensor": self._sensor_json,
-            "holes": json.dumps(out.holes, sort_keys=True),
-            "valid_pixels": int(valid.sum()), "body_pixels": int((labels > 0).sum()),
-        }
-        return depth_mm, labels, row, out.raw11
+        intr = self.cfg.sensor.intrinsics
+        sc = self.cfg.scene
+        scene = None if sc.is_person_only else {
+            "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None,
+            "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
+        return FrameRecord(
+            frame=desc.frame, shard=-1,
+            motion_file=self.pose_meta["motion_files"][mid],
+            motion_sha1=self.pose_meta["motion_sha1"][mid],
+            source_frame=int(self.pose_meta["source_frame"][pose]),
+            pose_index=pose, avatar_id=person.avatar_id,
+            avatar_params=json.dumps({**body.params, "skinning": self.cfg.skinning},
+                                     sort_keys=True),
+            width=intr.width, height=intr.height, fx=intr.fx, fy=intr.fy, cx=intr.cx,
+            cy=intr.cy, world_to_camera=w2c.reshape(-1).tolist(),
+            camera_distance_m=desc.camera.distance_m, camera_yaw_deg=desc.camera.yaw_deg,
+            camera_height_m=desc.camera.height_m, body_offset=person.offset.tolist(),
+            joints_cam=joints_cam.reshape(-1).tolist(), seed=desc.seed,
+            sensor=self._sensor_json, holes=json.dumps(holes, sort_keys=True),
+            valid_pixels=valid_pixels, body_pixels=int((labels > 0).sum()),
+            num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True),
+            people=[self._person(desc, p, view) for p in desc.people],
+            camera_pitch_deg=float(np.degrees(np.arcsin(np.clip(-w2c[2, 1], -1, 1)))),
+            camera_roll_deg=float(np.degrees(np.arctan2(w2c[0, 1], -w2c[1, 1]))))
 
     def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""
         h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
-        depth = np.zeros((stop - start, h, w), np.uint16)
-        labels = np.zeros((stop - start, h, w), np.uint8)
+        n = stop - start
+        depth = np.zeros((n, h, w), np.uint16)
+        ids = {k: np.zeros((n, h, w), np.uint8) for k in ("labels", "instances", "classes")}
         raw = None  # allocated if the sensor's encoding keeps raw11 (the model decides)
-        rows = []
+        records = []
+        dropped = {"people": 0, "props": 0}
         for i, f in enumerate(range(start, stop)):
-            depth[i], labels[i], row, r11 = self.render_frame(f)
-            if r11 is not None:
+            desc = self.describe(f)
+            for k, v in desc.dropped.items():
+                dropped[k] += v
+            o = self.render(desc)
+            depth[i] = o.depth_mm
+            ids["labels"][i], ids["instances"][i], ids["classes"][i] = (o.labels, o.instances,
+                                                                        o.classes)
+            if o.raw11 is not None:
                 if raw is None:
-                    raw = np.zeros((stop - start, h, w), np.uint16)
-                raw[i] = r11
-            row["shard"] = shard
-            rows.append(row)
-        write_shard(store, shard, self.cfg.frames_per_shard, depth, labels, raw)
-        num_joints = len(rows[0]["joints_cam"]) // 3
-        write_part(store, shard, rows, num_joints)
-        return {"shard": shard, "frames": stop - start, "renderer": self.renderer_info,
-                "valid_pixels": int(sum(r["valid_pixels"] for r in rows))}
+                    raw = np.zeros((n, h, w), np.uint16)
+                raw[i] = o.raw11
+            records.append(_with_shard(o.record, shard))
+        write_shard(store, shard, self.cfg.frames_per_shard, depth, ids["labels"], raw,
+                    extra={"instances": ids["instances"], "classes": ids["classes"]})
+        num_joints = len(records[0].joints_cam) // 3
+        write_part(store, shard, records, num_joints)
+        return {"shard": shard, "frames": n, "renderer": self.renderer_info,
+                "valid_pixels": int(sum(r.valid_pixels for r in records)), "dropped": dropped}
 
     def close(self) -> None:
+        self.scene.release()
         self.renderer.release()
+
+
+def local_generator(cfg: JobConfig, asset_dir: str | Path | None = None, context=None
+                    ) -> tuple[FrameGenerator, Any, Any]:
+    """A generator for ``cfg`` in this process, without Ray (tests, benchmarks, tools):
+    poses loaded and the plan made as the driver does. Returns (generator, poses, plan)."""
+    from vhgen.assets import resolve_asset_dir
+    from vhgen.body.labels import LabelScheme
+    from vhgen.body.model import build_body
+    from vhgen.mocap.retarget import RetargetMap, load_all_maps
+    from vhgen.pipeline.plan import make_plan
+    from vhgen.pipeline.poses import load_poses
+
+    asset_dir = resolve_asset_dir(cfg.assets) if asset_dir is None else asset_dir
+    base = build_body(Path(asset_dir), LabelScheme.load(cfg.labels))
+    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
+    poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
+    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
+                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
+                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
+                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
+                          "seeds": plan.seeds}, plan.avatars, context=context)
+    return gen, poses, plan
+
+
+def _with_shard(record: FrameRecord, shard: int) -> FrameRecord:
+    from dataclasses import replace
+
+    return replace(record, shard=shard)

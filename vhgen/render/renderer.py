@@ -1,11 +1,13 @@
 """Skinned depth + label rendering with moderngl.
 
 The renderer receives a context (see :mod:`vhgen.render.context`); it never creates one.
-One draw call per pose fills one RG32F target (planar depth, part label).
+One draw fills one RGBA32F target (planar depth, part label, person instance, scene class);
+a scene is several draws into the same target, depth-tested against each other.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
@@ -66,11 +68,56 @@ def _defines(num_bones: int, mode: str) -> dict[str, object]:
     return d
 
 
-class DepthLabelRenderer:
-    """Renders a skinned mesh into planar depth (float32 m) and labels (uint8).
+@dataclass(eq=False)
+class GpuMesh:
+    """A mesh resident on the GPU: its vertex array, buffers and per-triangle label texture.
 
-    One renderer per context: it owns the render target; :meth:`set_mesh` uploads a body
-    (again for each avatar), :meth:`render` draws one pose.
+    ``static`` meshes carry scene classes in the texture and are drawn with one rigid
+    transform; skinned meshes carry body-part labels."""
+
+    vao: Any
+    objects: list
+    label_tex: Any
+    static: bool
+
+    def release(self) -> None:
+        for obj in self.objects:
+            obj.release()
+        self.objects = []
+
+
+@dataclass(frozen=True, eq=False)
+class Draw:
+    """One mesh in a view: ``bones`` (B, 4, 4) float64 world_to_view @ M_b (a static mesh
+    takes one (4, 4) world_to_view), ``instance`` 0..255 and ``draw_class`` (the scene
+    class of a skinned mesh's pixels; static meshes carry theirs per triangle)."""
+
+    mesh: GpuMesh
+    bones: np.ndarray
+    instance: int = 0
+    draw_class: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class View:
+    """What one draw of a whole scene leaves in the target, (H, W) each: planar depth
+    float32 metres (0 = no hit), part labels, instances and classes uint8, and the
+    camera-frame normals (H, W, 3) float32 when the renderer was made with normals."""
+
+    depth: np.ndarray
+    labels: np.ndarray
+    instances: np.ndarray
+    classes: np.ndarray
+    normals: np.ndarray | None
+
+
+class DepthLabelRenderer:
+    """Renders skinned and static meshes into planar depth (float32 m) and labels (uint8).
+
+    One renderer per context: it owns the render target. :meth:`upload` puts a mesh on the
+    GPU (any number may be resident), :meth:`draw` renders a list of them in one target,
+    depth-tested against each other, so occlusion between people and geometry is exact.
+    :meth:`set_mesh` / :meth:`render` are the one-mesh shorthand.
 
     ctx : a moderngl context (current); intr : intrinsics (image size and projection);
     near, far : clip planes in metres, geometry outside is not drawn.
@@ -86,7 +133,7 @@ class DepthLabelRenderer:
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
         size = (intr.width, intr.height)
-        self.color = ctx.texture(size, 2, dtype="f4")
+        self.color = ctx.texture(size, 4, dtype="f4")
         attachments = [self.color]
         if self.want_normals:  # a second target only when a sensor effect needs normals
             self.normal_tex = ctx.texture(size, 4, dtype="f4")
@@ -94,11 +141,10 @@ class DepthLabelRenderer:
             self._normals = np.empty((intr.height, intr.width, 4), dtype=np.float32)
         self.depth = ctx.depth_renderbuffer(size)
         self.fbo = ctx.framebuffer(color_attachments=attachments, depth_attachment=self.depth)
-        self._out = np.empty((intr.height, intr.width, 2), dtype=np.float32)
+        self._out = np.empty((intr.height, intr.width, 4), dtype=np.float32)
         self.program: Any = None
         self.num_bones = 0
-        self._mesh: list = []
-        self.vao = None
+        self._single: GpuMesh | None = None
 
     def _compile(self, num_bones: int) -> None:
         if self.program is not None and num_bones == self.num_bones:
@@ -114,9 +160,11 @@ class DepthLabelRenderer:
         self.program["projection"].write(self.projection.T.astype("f4").tobytes())
         self.num_bones = num_bones
 
-    def set_mesh(self, vertices, faces, joints, weights, face_labels, num_bones: int) -> None:
-        """Upload a mesh: vertices (V,3), faces (T,3), joints (V,4) int, weights (V,4),
-        face_labels (T,) uint8, for a rig of ``num_bones`` bones."""
+    def upload(self, vertices, faces, joints, weights, face_labels, num_bones: int,
+               static: bool = False) -> GpuMesh:
+        """Put a mesh on the GPU: vertices (V,3), faces (T,3), joints (V,4) int, weights
+        (V,4), face_labels (T,) uint8 (body parts, or scene classes when ``static``), for a
+        rig of ``num_bones`` bones. All meshes of one renderer share the rig size."""
         import moderngl
 
         joints = np.asarray(joints)
@@ -125,14 +173,13 @@ class DepthLabelRenderer:
                               f"{joints.shape}")
         if joints.max() >= num_bones or joints.min() < 0:
             raise RenderError("joint index out of range of the bone array")
-        self._release_mesh()
         self._compile(int(num_bones))
         ctx = self.ctx
         vbo_pos = ctx.buffer(np.ascontiguousarray(vertices, dtype="f4").tobytes())
         vbo_joints = ctx.buffer(np.ascontiguousarray(joints, dtype="i4").tobytes())
         vbo_weights = ctx.buffer(np.ascontiguousarray(weights, dtype="f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(faces, dtype="u4").tobytes())
-        self.vao = ctx.vertex_array(self.program, [
+        vao = ctx.vertex_array(self.program, [
             (vbo_pos, "3f", "in_position"),
             (vbo_joints, "4i", "in_joints"),
             (vbo_weights, "4f", "in_weights"),
@@ -143,52 +190,87 @@ class DepthLabelRenderer:
         padded[:len(labels)] = labels
         label_tex = ctx.texture((LABEL_TEX_WIDTH, rows), 1, padded.tobytes(), dtype="u1")
         label_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self._mesh = [self.vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex]
-        self.label_tex = label_tex
+        mesh = GpuMesh(vao, [vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex],
+                       label_tex, static)
         self._check("uploading the mesh")
+        return mesh
+
+    def upload_static(self, vertices, faces, face_classes) -> GpuMesh:
+        """A rigid mesh in world coordinates, (V,3) float, (T,3) int, (T,) uint8 classes."""
+        if self.program is None:
+            raise RenderError("upload a skinned mesh first (it fixes the rig size)")
+        n = len(vertices)
+        return self.upload(vertices, faces, np.zeros((n, 4), np.int32),
+                           np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (n, 1)),
+                           face_classes, self.num_bones, static=True)
+
+    def set_mesh(self, vertices, faces, joints, weights, face_labels, num_bones: int) -> None:
+        """Upload the one mesh :meth:`render` draws (replacing the previous one)."""
+        if self._single is not None:
+            self._single.release()
+            self._single = None
+        self._single = self.upload(vertices, faces, joints, weights, face_labels, num_bones)
 
     def _check(self, what: str) -> None:
         err = self.ctx.error
         if err != "GL_NO_ERROR":
             raise RenderError(f"OpenGL error {what}: {err}")
 
+    def draw(self, draws: list[Draw]) -> View:
+        """Draw ``draws`` into one cleared target and read it back (see :class:`View`)."""
+        import moderngl
+
+        if self.program is None:
+            raise RenderError("draw() before any mesh was uploaded")
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        for d in draws:
+            m = np.asarray(d.bones, dtype=np.float64)
+            if d.mesh.static:
+                if m.shape != (4, 4):
+                    raise RenderError(f"a static mesh takes one 4x4 transform, got {m.shape}")
+                m = np.broadcast_to(m, (self.num_bones, 4, 4))
+            elif m.shape != (self.num_bones, 4, 4):
+                raise RenderError(f"expected ({self.num_bones}, 4, 4) bone matrices, "
+                                  f"got {m.shape}")
+            write_bones(self.program, m, self.skinning)
+            self.program["labels_are_classes"].value = int(d.mesh.static)
+            self.program["instance_id"].value = float(d.instance)
+            self.program["draw_class"].value = float(d.draw_class)
+            d.mesh.label_tex.use(0)
+            d.mesh.vao.render(moderngl.TRIANGLES)
+        self.fbo.read_into(self._out, components=4, dtype="f4")
+        normals = None
+        if self.want_normals:
+            self.fbo.read_into(self._normals, components=4, attachment=1, dtype="f4")
+            normals = self._normals[..., :3].copy()
+            self.normals = normals
+        self._check("after draw")
+        out = self._out
+        return View(out[..., 0].copy(), out[..., 1].astype(np.uint8),
+                    out[..., 2].astype(np.uint8), out[..., 3].astype(np.uint8), normals)
+
     def render(self, camera_bones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Draw one pose.
+        """Draw the :meth:`set_mesh` mesh in one pose.
 
         camera_bones : (B, 4, 4) float64 world_to_camera @ M_b.
         Returns depth (H, W) float32 metres (0 = no hit) and labels (H, W) uint8; with
         ``normals=True`` the camera-frame normals of the same draw are in :attr:`normals`.
         """
-        import moderngl
-
-        if self.vao is None:
+        if self._single is None:
             raise RenderError("render() before set_mesh()")
-        m = np.asarray(camera_bones, dtype=np.float64)
-        if m.shape != (self.num_bones, 4, 4):
-            raise RenderError(f"expected ({self.num_bones}, 4, 4) bone matrices, got {m.shape}")
-        write_bones(self.program, m, self.skinning)
-        self.fbo.use()
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        self.label_tex.use(0)
-        self.vao.render(moderngl.TRIANGLES)
-        self.fbo.read_into(self._out, components=2, dtype="f4")
-        if self.want_normals:
-            self.fbo.read_into(self._normals, components=4, attachment=1, dtype="f4")
-            self.normals = self._normals[..., :3].copy()
-        self._check("after draw")
-        return self._out[..., 0].copy(), self._out[..., 1].astype(np.uint8)
-
-    def _release_mesh(self) -> None:
-        for obj in self._mesh:
-            obj.release()
-        self._mesh = []
-        self.vao = None
+        view = self.draw([Draw(self._single, camera_bones)])
+        return view.depth, view.labels
 
     def release(self) -> None:
+        """Release the target, the program and the :meth:`set_mesh` mesh (meshes from
+        :meth:`upload` belong to the caller, who releases them before this)."""
         _park(self.ctx)
-        self._release_mesh()
+        if self._single is not None:
+            self._single.release()
+            self._single = None
         extra = (self.normal_tex,) if self.want_normals else ()
         for obj in (self.program, self.fbo, self.color, self.depth, *extra):
             if obj is not None:

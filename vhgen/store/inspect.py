@@ -11,6 +11,9 @@ Checks, shard by shard (one shard of every array in memory at a time):
   per shard and reported with the shard's frame range);
 * each frame's ``body_pixels`` (labels > 0) and ``valid_pixels`` (depth > 0), recomputed
   from the arrays, equal the manifest's; labels stay within ``0..K``;
+* ``instances`` and ``classes`` (scene stores) agree with ``labels``: a pixel is a body
+  part exactly when it belongs to a person instance and has the person class; instance
+  ids stay within the frame's ``num_people`` and classes within ``class_names``;
 * every shard has its completion record (``manifest/part-<shard>.parquet``).
 
 Each defect is one line saying where. The report also carries the per-part pixel
@@ -27,10 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.scene.geometry import PERSON, SCENE_CLASSES
 from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS, open_store
 
 # array name -> dtype the contract requires; depth and labels are mandatory
-CONTRACT_ARRAYS = {"depth": "uint16", "labels": "uint8", "raw": "uint16"}
+CONTRACT_ARRAYS = {"depth": "uint16", "labels": "uint8", "raw": "uint16",
+                   "instances": "uint8", "classes": "uint8"}
 REQUIRED_ARRAYS = ("depth", "labels")
 
 
@@ -234,6 +239,9 @@ def inspect_store(path: str | Path) -> InspectReport:
                  if man is not None and "valid_pixels" in man.column_names else None)
     body_col = (man.column("body_pixels").to_numpy()
                 if man is not None and "body_pixels" in man.column_names else None)
+    people_col = (man.column("num_people").to_numpy()
+                  if man is not None and "num_people" in man.column_names else None)
+    num_classes = len(attrs.get("class_names", SCENE_CLASSES))
 
     hist = np.zeros(max(k + 1, 1), np.int64)
     valid_frac: list[float] = []
@@ -276,6 +284,10 @@ def inspect_store(path: str | Path) -> InspectReport:
                 if r is not None and body_col is not None and body != int(body_col[r]):
                     rep.defects.append(f"frame {frame} ({where}): labels have {body} body pixels, "
                                        f"manifest body_pixels says {int(body_col[r])}")
+            if "labels" in data:
+                _check_scene_arrays(rep, data, i, frame, where, num_classes,
+                                    int(people_col[r]) if r is not None and
+                                    people_col is not None else None)
             if "depth" in data:
                 dep = data["depth"][i]
                 valid = dep > 0
@@ -307,3 +319,26 @@ def report_json(rep: InspectReport) -> str:
 
 
 __all__ = ["InspectReport", "inspect_store", "report_json"]
+
+
+def _check_scene_arrays(rep: InspectReport, data: dict[str, np.ndarray], i: int, frame: int,
+                        where: str, num_classes: int, num_people: int | None) -> None:
+    """instances/classes of frame ``frame`` (row ``i`` of the shard) against its labels."""
+    body = data["labels"][i] > 0
+    if "instances" in data:
+        inst = data["instances"][i]
+        if (n := int(np.count_nonzero((inst > 0) != body))):
+            rep.defects.append(f"frame {frame} ({where}): instances and labels disagree on "
+                               f"{n} pixels (person without body part or the reverse)")
+        top = int(inst.max())
+        if num_people is not None and top > num_people:
+            rep.defects.append(f"frame {frame} ({where}): instance {top} but the manifest "
+                               f"row has num_people {num_people}")
+    if "classes" in data:
+        cls = data["classes"][i]
+        if (top := int(cls.max())) >= num_classes:
+            rep.defects.append(f"frame {frame} ({where}): class {top} is not in class_names "
+                               f"(0..{num_classes - 1})")
+        if (n := int(np.count_nonzero((cls == PERSON) != body))):
+            rep.defects.append(f"frame {frame} ({where}): classes and labels disagree on "
+                               f"{n} pixels (person class without body part or the reverse)")

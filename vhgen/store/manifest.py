@@ -8,47 +8,41 @@ from pathlib import Path
 import numpy as np
 
 from vhgen.errors import StoreError
+from vhgen.store.record import FrameRecord, PersonRecord, columns
 from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS
 
 
-def manifest_schema(num_joints: int):
+def _arrow(kind: str, num_joints: int):
     import pyarrow as pa
 
-    return pa.schema([
-        ("frame", pa.int64()),
-        ("shard", pa.int32()),
-        ("motion_file", pa.string()),
-        ("motion_sha1", pa.string()),
-        ("source_frame", pa.int32()),
-        ("pose_index", pa.int64()),
-        ("avatar_id", pa.int32()),
-        ("avatar_params", pa.string()),  # JSON
-        ("width", pa.int32()),
-        ("height", pa.int32()),
-        ("fx", pa.float64()),
-        ("fy", pa.float64()),
-        ("cx", pa.float64()),
-        ("cy", pa.float64()),
-        ("world_to_camera", pa.list_(pa.float64(), 16)),  # row-major 4x4, OpenCV camera
-        ("camera_distance_m", pa.float64()),
-        ("camera_yaw_deg", pa.float64()),
-        ("camera_height_m", pa.float64()),
-        ("body_offset", pa.list_(pa.float64(), 3)),  # added to the retargeted pose
-        ("joints_cam", pa.list_(pa.float32(), 3 * num_joints)),  # bone heads, camera frame
-        ("seed", pa.uint64()),
-        ("sensor", pa.string()),  # JSON: sensor name, intrinsics, effects applied in order
-        ("holes", pa.string()),  # JSON: pixels without measurement, by cause
-        ("valid_pixels", pa.int32()),
-        ("body_pixels", pa.int32()),
-    ])
+    scalar = {"int64": pa.int64(), "int32": pa.int32(), "uint64": pa.uint64(),
+              "float64": pa.float64(), "float32": pa.float32(), "string": pa.string(),
+              "bool": pa.bool_()}
+    if kind in scalar:
+        return scalar[kind]
+    if kind == "people":
+        return pa.list_(pa.struct([(n, _arrow(k, num_joints))
+                                   for n, k in columns(PersonRecord)]))
+    base, _, n = kind.partition("x")
+    size = {"J3": 3 * num_joints, "J2": 2 * num_joints, "J": num_joints}.get(n) or int(n)
+    return pa.list_(scalar[base], size)
 
 
-def write_part(store: str | Path, shard: int, rows: list[dict], num_joints: int) -> Path:
-    """Write a shard's rows atomically (temp file + rename)."""
+def manifest_schema(num_joints: int):
+    """The Arrow schema of the manifest: the fields of :class:`FrameRecord`, in order."""
+    import pyarrow as pa
+
+    return pa.schema([(name, _arrow(kind, num_joints)) for name, kind in columns()])
+
+
+def write_part(store: str | Path, shard: int, records: list[FrameRecord],
+               num_joints: int) -> Path:
+    """Write a shard's records atomically (temp file + rename)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     schema = manifest_schema(num_joints)
+    rows = [r.to_row() for r in records]
     cols = {f.name: [r[f.name] for r in rows] for f in schema}
     table = pa.table(cols, schema=schema)
     out = Path(store) / MANIFEST_PARTS / f"part-{shard:06d}.parquet"

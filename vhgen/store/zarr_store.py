@@ -8,6 +8,10 @@ Contract (later work may add arrays and columns, never change these):
 * ``labels`` (N, H, W) uint8, 0 = background, 1..K = body parts; the group attributes
   ``label_names`` (K names, label k = names[k-1]) and ``label_colors`` ((K+1) x RGB,
   row 0 background) describe them;
+* ``instances`` (N, H, W) uint8, 0 = no person, k = the k-th person of the frame's
+  manifest row; ``classes`` (N, H, W) uint8 scene classes, named by the group attribute
+  ``class_names`` (class c = names[c]: background, floor, wall, prop, person, ...);
+  stores written before these existed lack both and stay readable;
 * ``manifest.parquet`` inside the group folder, one row per frame (see
   :mod:`vhgen.store.manifest`).
 
@@ -26,6 +30,7 @@ from typing import Any, Literal
 import numpy as np
 
 from vhgen.errors import StoreError
+from vhgen.scene.geometry import SCENE_CLASSES
 
 CONTRACT_VERSION = 1
 MANIFEST_PARTS = "manifest"
@@ -48,7 +53,8 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
     if path.exists() and not overwrite:
         raise StoreError(f"{path} exists; pass overwrite (or resume) to reuse it")
     root = zarr.open_group(str(path), mode="w", zarr_format=3)
-    arrays = [("depth", "uint16", 0), ("labels", "uint8", 0)]
+    arrays = [("depth", "uint16", 0), ("labels", "uint8", 0), ("instances", "uint8", 0),
+              ("classes", "uint8", 0)]
     if raw11:
         arrays.append(("raw", "uint16", 2047))
     for name, dtype, fill in arrays:
@@ -57,7 +63,8 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
                           shards=(frames_per_shard, height, width),
                           compressors=_codecs(compression_level), fill_value=fill,
                           dimension_names=("frame", "y", "x"))
-    root.attrs.update({**attrs, "vhgen_contract": CONTRACT_VERSION})
+    root.attrs.update({"class_names": list(SCENE_CLASSES), **attrs,
+                       "vhgen_contract": CONTRACT_VERSION})
     (path / MANIFEST_PARTS).mkdir(exist_ok=True)
 
 
@@ -71,8 +78,10 @@ def open_store(path: str | Path, mode: Literal["r", "r+"] = "r") -> Any:
 
 
 def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.ndarray,
-                labels: np.ndarray, raw: np.ndarray | None = None) -> None:
-    """Write one whole shard of both arrays (the only writer of this shard)."""
+                labels: np.ndarray, raw: np.ndarray | None = None,
+                extra: dict[str, np.ndarray] | None = None) -> None:
+    """Write one whole shard of every array (the only writer of this shard); ``extra``
+    holds further uint8 (n, H, W) arrays by name (``instances``, ``classes``)."""
     root = open_store(path, mode="r+")
     start = shard * frames_per_shard
     n = depth.shape[0]
@@ -85,6 +94,14 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     root["labels"][start:start + n] = labels
     if raw is not None:
         root["raw"][start:start + n] = raw
+    for name, arr in (extra or {}).items():
+        if name not in root:
+            raise StoreError(f"{path}: no {name!r} array (the store was made by an older "
+                             "vhgen); generate it again with --overwrite")
+        if arr.shape != depth.shape or arr.dtype != np.uint8:
+            raise StoreError(f"shard {shard}: {name} {arr.shape} {arr.dtype}, expected "
+                             f"{depth.shape} uint8")
+        root[name][start:start + n] = arr
 
 
 def completed_shards(path: str | Path) -> set[int]:

@@ -1,0 +1,84 @@
+"""The render step: every requested view of a whole frame description in one pass each.
+
+People and static geometry are drawn into the same depth-tested target, so occlusion
+between them is exact; the projector view (same scene, from +baseline along the
+camera's x axis) is drawn only when a sensor effect needs it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from vhgen.body.model import Body
+from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
+from vhgen.scene.description import FrameDescription
+from vhgen.scene.geometry import PERSON
+
+MAX_RESIDENT_AVATARS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class SceneViews:
+    """camera: the camera view; projector_depth (H, W) float32 metres or None."""
+
+    camera: View
+    projector_depth: np.ndarray | None
+
+
+def world_to_projector(world_to_camera: np.ndarray, baseline_m: float) -> np.ndarray:
+    """The projector sits at +baseline along the camera's x axis (rectified rig)."""
+    w2p = np.array(world_to_camera, dtype=np.float64)
+    w2p[0, 3] -= baseline_m
+    return w2p
+
+
+class SceneRenderer:
+    """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
+    last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU)."""
+
+    def __init__(self, renderer: DepthLabelRenderer, body_of: Callable[[int], Body]):
+        self.renderer = renderer
+        self.body_of = body_of
+        self._meshes: dict[int, GpuMesh] = {}
+
+    def _mesh(self, avatar_id: int) -> GpuMesh:
+        mesh = self._meshes.get(avatar_id)
+        if mesh is None:
+            if len(self._meshes) >= MAX_RESIDENT_AVATARS:
+                self._meshes.pop(next(iter(self._meshes))).release()
+            b = self.body_of(avatar_id)
+            mesh = self.renderer.upload(b.vertices, b.faces, b.joints, b.weights,
+                                        b.face_labels, b.num_bones)
+            self._meshes[avatar_id] = mesh
+        return mesh
+
+    def render(self, desc: FrameDescription, projector_baseline_m: float | None = None
+               ) -> SceneViews:
+        """The camera view and, when ``projector_baseline_m`` is given, the projector's
+        depth of the same scene."""
+        people = [(self._mesh(p.avatar_id), p) for p in desc.people]
+        static = [self.renderer.upload_static(m.vertices, m.faces, m.face_classes)
+                  for m in desc.static]
+        try:
+            def draws(w2v: np.ndarray) -> list[Draw]:
+                return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]
+                        + [Draw(m, w2v) for m in static])
+
+            w2c = desc.camera.world_to_camera
+            cam = self.renderer.draw(draws(w2c))
+            proj = None
+            if projector_baseline_m is not None:
+                proj = self.renderer.draw(draws(world_to_projector(
+                    w2c, projector_baseline_m))).depth
+        finally:
+            for m in static:
+                m.release()
+        return SceneViews(cam, proj)
+
+    def release(self) -> None:
+        for m in self._meshes.values():
+            m.release()
+        self._meshes = {}

@@ -1,0 +1,90 @@
+"""The frozen description of one frame: everything the render step and the sensor need,
+built from the plan before any GL call (see :mod:`vhgen.pipeline.describe`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from vhgen.scene.geometry import StaticMesh
+from vhgen.scene.placement import Disc
+from vhgen.scene.room import Room
+
+
+@dataclass(frozen=True, eq=False)
+class Person:
+    """One person in a frame: ``instance`` (1..255, the value in ``instances``), the avatar
+    and pose, ``bones`` (B, 4, 4) float64 world transforms of the posed rig, ``joints``
+    (B, 3) float64 world bone heads, and ``offset`` (3,) added to the retargeted root."""
+
+    instance: int
+    avatar_id: int
+    pose_index: int
+    bones: np.ndarray
+    joints: np.ndarray
+    offset: np.ndarray
+    placement: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4), after offset
+    footprint: Disc | None = None  # bounding circle on the floor at placement time
+
+
+@dataclass(frozen=True, eq=False)
+class PlacedProp:
+    """A prop in a frame: its kind (or mesh file name), the (4, 4) world transform of its
+    own frame, its footprint, and whether it was put on a line of sight to a person."""
+
+    kind: str
+    transform: np.ndarray
+    footprint: Disc
+    occluder: bool
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "x": self.footprint.x, "z": self.footprint.z,
+                "radius": self.footprint.r,
+                "yaw_deg": float(np.rad2deg(np.arctan2(self.transform[0, 2],
+                                                       self.transform[0, 0]))),
+                "occluder": self.occluder}
+
+
+@dataclass(frozen=True, eq=False)
+class CameraPose:
+    """world_to_camera (4, 4) float64 (OpenCV axes: x right, y down, z forward) and the
+    sampled mount: yaw about the subject (deg), distance and height (m), and for a
+    mounted camera its pitch and roll (deg; None when it looks at the subject)."""
+
+    world_to_camera: np.ndarray
+    yaw_deg: float
+    distance_m: float
+    height_m: float
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class FrameDescription:
+    """One frame, pure: people, static geometry, camera, and the seeds.
+
+    ``noise_state`` is the bit-generator state the sensor's noise starts from. It is the
+    frame stream right after the camera's draws, the order vhgen has always used, so
+    person-only frames are byte-identical to earlier versions; everything new a scene
+    samples (room, placements) comes from a second stream spawned from ``seed``, so scene
+    options never shift the sensor noise of a frame."""
+
+    frame: int
+    seed: int
+    camera: CameraPose
+    people: tuple[Person, ...]
+    static: tuple[StaticMesh, ...]
+    room: Room | None
+    noise_state: Mapping[str, Any]
+    props: tuple[PlacedProp, ...] = ()
+    dropped: Mapping[str, int] = field(default_factory=dict)  # people/props that did not fit
+
+    def noise_rng(self) -> np.random.Generator:
+        """A fresh generator at :attr:`noise_state` (the same numbers every call)."""
+        bg = np.random.PCG64()
+        # numpy types the state as a TypedDict; ours is the same mapping, copied
+        bg.state = dict(self.noise_state)  # type: ignore[assignment]
+        return np.random.Generator(bg)
