@@ -11,7 +11,16 @@ and noisy: compare the ratios, not the absolute numbers across runs):
 * sensor: gating, noise, 1/8 px quantisation, uint16 mm encoding;
 * write: one Zarr shard of uint16 depth + uint8 labels (zstd) + its manifest part;
 * end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
-  and the same without start-up (render phase only).
+  and the same without start-up (render phase only);
+* fixed cost (``--startup`` runs only this): the wall time of a job with zero frames, i.e.
+  the intercept ``a`` of ``T(N) = a + b N`` through two runs of the same job (same
+  workers) that differ only in their number of frames, N set through ``poses.frame_step``
+  (default: frame steps 8 and 2 of the default config, 60 and 240 frames); ``b`` is the
+  steady time per frame. It counts Ray start, actor set-up, kernel loading, planning,
+  the merge and Ray shutdown: everything that does not grow with the frames. Only
+  ``JobConfig.load`` and ``run_job(cfg, out)`` are used, so the same command measures
+  an older checkout (``PYTHONPATH=/path/to/old/checkout``) side by side. The in-run rows
+  (this version) subtract the frames at the workers' own steady rate from one job.
 """
 
 from __future__ import annotations
@@ -37,7 +46,17 @@ def main() -> None:
     ap.add_argument("--scene", default=str(REPO / "configs" / "scenes" / "living_room.yaml"),
                     help="a scene config whose frames are timed beside --config's, "
                          "interleaved (target: at most 1.3x); '' to skip")
+    ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
+    ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
+                    help="the two poses.frame_step values of the fixed-cost runs")
     args = ap.parse_args()
+    if args.startup:
+        from vhgen.config import JobConfig
+
+        jc = JobConfig.load(args.config, backend=args.backend)
+        print_rows(fixed_cost(jc, args.steps), f"vhgen fixed cost: config {jc.name}, "
+                   f"backend {jc.backend}, {jc.num_workers} workers, {os.cpu_count()} CPUs")
+        return
 
     from vhgen.assets import resolve_asset_dir
     from vhgen.body.labels import LabelScheme
@@ -137,6 +156,7 @@ def main() -> None:
                      summary["seconds"]))
         rows.append((f"end to end, Ray x{cfg.num_workers} (render phase)", summary["frames"],
                      summary["render_seconds"]))
+        rows += fixed_cost(cfg, args.steps)
 
     print(f"\nvhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
           f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
@@ -184,6 +204,40 @@ def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[floa
     rows.append((f"frame, {full.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
     rows.append((f"frame, {full.name} with 1 person (interleaved)", n, t_scene[1]))
     return t_scene[0] / t_person, t_scene[1] / t_person
+
+
+def fixed_cost(cfg, steps) -> list[tuple[str, int, float]]:
+    """Rows: the two timed jobs, the steady time per frame and the fixed cost (intercept)."""
+    import vhgen
+    from vhgen.pipeline.driver import run_job
+
+    runs, rows = [], []
+    for step in steps:
+        c = replace(cfg, poses=replace(cfg.poses, frame_step=step))
+        with tempfile.TemporaryDirectory() as tmp:
+            t = time.perf_counter()
+            summary = run_job(c, Path(tmp) / "fixed.zarr")
+            runs.append((summary["frames"], time.perf_counter() - t))
+            if "fixed_seconds" in summary:  # the in-run estimate (this version only)
+                rows.append((f"fixed cost in-run, {summary['frames']} frames", 1,
+                             summary["fixed_seconds"]))
+                for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
+                    rows.append((f"  {k.replace('_seconds', '')}", 1, summary[k]))
+    (n1, t1), (n2, t2) = runs
+    per_frame = (t2 - t1) / (n2 - n1)
+    fixed = t1 - n1 * per_frame
+    where = Path(vhgen.__file__).resolve().parent.parent.name
+    return [*rows, (f"job, {n1} frames ({where})", n1, t1),
+            (f"job, {n2} frames ({where})", n2, t2),
+            (f"steady time per frame ({where})", 1, per_frame),
+            (f"fixed cost = T(0) ({where})", 1, fixed)]
+
+
+def print_rows(rows, title: str) -> None:
+    print(f"\n{title}")
+    print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
+    for name, count, sec in rows:
+        print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
 
 
 if __name__ == "__main__":

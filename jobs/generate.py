@@ -12,4 +12,4 @@ import sys
 from vhgen.cli import main
 
 if __name__ == "__main__":
-    sys.exit(main(["-v", "generate", *sys.argv[1:]]))
+    sys.exit(main(["generate", *sys.argv[1:]]))

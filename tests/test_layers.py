@@ -22,7 +22,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("rotations", "camera", "assets"),
     ("mocap", "body", "sensor"),
     ("scene",),
-    ("config",),
+    ("config", "cliargs"),
     ("store",),
     ("render", "preview"),
     ("pipeline",),

@@ -47,6 +47,20 @@ def vhgen_home() -> Path:
     return Path(os.environ.get("VHGEN_HOME") or Path.home() / ".cache" / "vhgen")
 
 
+def numba_cache_dir() -> Path:
+    """Where numba keeps its compiled kernels (``cache=True``): ``$VHGEN_HOME/cache/numba``.
+
+    Not next to the sources: an installed package's folder may be read-only, and a
+    per-user cache is shared by every process of a job (Ray actors included).
+    """
+    return vhgen_home() / "cache" / "numba"
+
+
+# before any vhgen module imports numba (this module is the package's first import):
+# numba reads NUMBA_CACHE_DIR when it is imported; a value the user set wins
+os.environ.setdefault("NUMBA_CACHE_DIR", str(numba_cache_dir()))
+
+
 def default_asset_dir() -> Path:
     return vhgen_home() / "mpfb2"
 

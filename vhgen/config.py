@@ -25,7 +25,7 @@ from vhgen.scene.config import (
 )
 from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.sensor.config import SensorConfig
-from vhgen.yamlio import check_keys, load_yaml
+from vhgen.yamlio import check_keys, find_config, load_yaml
 
 
 def _num(d: dict, key: str, src, prefix: str, *, lo=None, hi=None, integer=False,
@@ -137,7 +137,9 @@ class JobConfig:
 
     @classmethod
     def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
-        path = Path(path)
+        """A scene config by path, or by name from the shipped ``configs/scenes``
+        (``default``); ``overrides`` (num_workers, backend) replace the file's values."""
+        path = find_config("scenes", path)
         d = load_yaml(path)
         top = {"name", "seed", "motions", "retarget", "labels", "sensor", "assets", "poses",
                "avatars", "camera", "output", "render", "num_workers", "description", "scene"}
@@ -204,18 +206,30 @@ class JobConfig:
             d, "num_workers", path, "", lo=1, hi=4096, integer=True, default=2)
         if overrides:
             raise ConfigError(path, "overrides", f"unknown overrides {sorted(overrides)}")
-        sensor_ref = d.get("sensor", "kinect_v1_full")
-        sensor_path = sensor_ref if not str(sensor_ref).endswith((".yaml", ".yml")) else \
-            str((path.parent / sensor_ref).resolve())
+        # named configs come from the package, YAML paths are relative to this file;
+        # checked here, so a typo fails before any work starts
+        refs: dict[str, str] = {}
+        for key, kind, default in (("sensor", "sensors", "kinect_v1_full"),
+                                   ("labels", "labels", "shotton31"),
+                                   ("retarget", "retarget", "auto")):
+            ref = d.get(key, default)
+            if not isinstance(ref, str) or not ref:
+                raise ConfigError(path, key, f"must be a config name or a YAML path, got {ref!r}")
+            if ref.endswith((".yaml", ".yml")):
+                ref = str((path.parent / Path(ref).expanduser()).resolve())
+                if not Path(ref).is_file():
+                    kind_name = {"retarget": "map", "labels": "label scheme"}.get(key, key)
+                    raise ConfigError(path, key, f"{kind_name} file {ref} does not exist")
+            refs[key] = ref
+            if key != "sensor" and ref != "auto":  # the sensor is loaded (and checked) below
+                try:
+                    find_config(kind, ref)
+                except ConfigError as e:
+                    raise ConfigError(path, key, str(e)) from None
         try:
-            sensor = SensorConfig.load(sensor_path)
+            sensor = SensorConfig.load(refs["sensor"])
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
-        retarget = str(d.get("retarget", "auto"))
-        if retarget.endswith((".yaml", ".yml")):  # a map file, relative to this config
-            retarget = str((path.parent / Path(retarget).expanduser()).resolve())
-            if not Path(retarget).is_file():
-                raise ConfigError(path, "retarget", f"map file {retarget} does not exist")
         _check_camera_sees(camera, sensor.intrinsics, path)
         assets = d.get("assets")
         if assets is not None:
@@ -223,8 +237,8 @@ class JobConfig:
         return cls(
             name=str(d["name"]),
             seed=_num(d, "seed", path, "", lo=0, hi=2**63 - 1, integer=True, default=0),
-            motions=tuple(resolved), retarget=retarget,
-            labels=str(d.get("labels", "shotton31")), sensor=sensor, assets=assets,
+            motions=tuple(resolved), retarget=refs["retarget"],
+            labels=refs["labels"], sensor=sensor, assets=assets,
             poses=poses, avatars=avatars, camera=camera,
             frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,
                                   integer=True, default=16),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -42,14 +43,22 @@ def check_keys(data: dict, allowed: set[str], required: set[str], source, prefix
 
 
 def configs_dir() -> Path:
-    """The repository's ``configs/`` folder (shipped next to the package)."""
-    return Path(__file__).resolve().parent.parent / "configs"
+    """The shipped configs: the package ``vhgen.configs``.
+
+    The repository keeps them in ``configs/`` at its top; the build maps that folder into
+    the package (setup.py), so an editable install and an installed wheel both find them
+    here, wherever the user's working directory is.
+    """
+    return Path(str(resources.files("vhgen.configs")))
 
 
 def find_config(kind: str, name_or_path: str | Path) -> Path:
-    """A config by path, or by bare name under ``configs/<kind>/<name>.yaml``."""
+    """A config by path (relative to the working directory), or by bare name from the
+    shipped ``configs/<kind>/<name>.yaml``."""
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") or p.exists():
+        if not p.is_file():
+            raise ConfigError(p, "<file>", "no such file" if not p.exists() else "not a file")
         return p
     cand = configs_dir() / kind / f"{name_or_path}.yaml"
     if not cand.is_file():

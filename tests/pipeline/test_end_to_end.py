@@ -136,7 +136,7 @@ def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap):
     import pyarrow.parquet as pq
 
     tmp, cfg, _ = smoke
-    summary = run_job(cfg, tmp / "faulty.zarr", fail_once_shards={0, 2})
+    summary = run_job(cfg, tmp / "faulty.zarr", faults={"die_once": {0, 2}})
     assert summary["frames"] == 10 and summary["retries"] == 2
     a, b = _store_files(tmp / "two.zarr"), _store_files(tmp / "faulty.zarr")
     assert all(a[k] == b[k] for k in a)

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from vhgen import cliargs as A
 from vhgen.errors import ForestError
 
 
@@ -161,57 +162,67 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     fsub = fp.add_subparsers(dest="forest_cmd", required=True)
 
     t = fsub.add_parser("train", help="train a forest on one or more stores")
-    t.add_argument("stores", nargs="+", help="dataset stores (vhgen generate output)")
-    t.add_argument("--out", required=True, help="forest file (.npz)")
-    t.add_argument("--trees", type=int, default=3, help="number of trees (default 3)")
-    t.add_argument("--depth", type=int, default=20, help="maximum tree depth (default 20)")
-    t.add_argument("--pixels-per-image", type=int, default=2000,
+    t.add_argument("stores", nargs="+", type=A.text("store"),
+                   help="dataset stores (vhgen generate output)")
+    t.add_argument("--out", required=True, type=A.output_path(".npz"), help="forest file (.npz)")
+    t.add_argument("--trees", type=A.int_range(1, 1000), default=3,
+                   help="number of trees (default 3)")
+    t.add_argument("--depth", type=A.int_range(1, 64), default=20,
+                   help="maximum tree depth (default 20)")
+    t.add_argument("--pixels-per-image", type=A.int_range(1), default=2000,
                    help="training pixels per image, balanced over parts (default 2000)")
-    t.add_argument("--features", type=int, default=2000,
+    t.add_argument("--features", type=A.int_range(1), default=2000,
                    help="candidate offset pairs per node (default 2000)")
-    t.add_argument("--thresholds", type=int, default=50,
+    t.add_argument("--thresholds", type=A.int_range(1), default=50,
                    help="candidate thresholds per feature (default 50)")
-    t.add_argument("--seed", type=int, default=0, help="seed of sampling and candidates")
-    t.add_argument("--min-samples", type=int, default=32,
+    t.add_argument("--seed", type=A.int_range(0, 2**63 - 1), default=0,
+                   help="seed of sampling and candidates")
+    t.add_argument("--min-samples", type=A.int_range(1), default=32,
                    help="a node with fewer samples becomes a leaf (default 32)")
-    t.add_argument("--min-gain", type=float, default=1e-3,
+    t.add_argument("--min-gain", type=A.float_range(0), default=1e-3,
                    help="a node whose best information gain (bits) is lower becomes a leaf")
-    t.add_argument("--max-offset", type=int, default=130,
+    t.add_argument("--max-offset", type=A.int_range(1), default=130,
                    help="largest probe offset, pixel-metres (default 130)")
-    t.add_argument("--threshold-range", type=int, default=1000,
+    t.add_argument("--threshold-range", type=A.int_range(1), default=1000,
                    help="thresholds drawn in [-R, R] mm (default 1000)")
-    t.add_argument("--max-frames", type=int, help="a seeded random subset of the frames")
-    t.add_argument("--workers", type=int,
+    t.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
+    t.add_argument("--workers", type=A.int_range(1, 4096),
                    help="Ray workers holding disjoint image sets (default: in process)")
-    t.add_argument("--address", help="existing Ray cluster (e.g. auto or ray://host:10001)")
-    t.add_argument("--hist-budget-mb", type=int, default=256,
+    t.add_argument("--address", type=A.text("address"),
+                   help="existing Ray cluster (e.g. auto or ray://host:10001)")
+    t.add_argument("--hist-budget-mb", type=A.int_range(1), default=256,
                    help="histogram memory per chunk of nodes and worker (default 256)")
     t.add_argument("--quiet", action="store_true", help="no per-level progress")
     t.set_defaults(func=_cmd_train)
 
     e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores")
-    e.add_argument("forest", help="forest .npz (or a PCL tree directory)")
-    e.add_argument("stores", nargs="+", help="test stores")
-    e.add_argument("--json", help="write the scores here")
-    e.add_argument("--out", help="folder for confusion.png and contact_sheet.png")
-    e.add_argument("--max-frames", type=int, help="a seeded random subset of the frames")
-    e.add_argument("--fx", type=float, help="training focal length of PCL trees (for the "
+    e.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
+    e.add_argument("stores", nargs="+", type=A.text("store"), help="test stores")
+    e.add_argument("--json", type=A.output_path(".json"), help="write the scores here")
+    e.add_argument("--out", type=A.output_path(),
+                   help="folder for confusion.png and contact_sheet.png")
+    e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
+    e.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                   help="training focal length of PCL trees (for the "
                                             "focal-length check)")
     e.set_defaults(func=_cmd_eval)
 
     lb = fsub.add_parser("label", help="label a 16-bit millimetre depth PNG")
-    lb.add_argument("forest", help="forest .npz (or a PCL tree directory)")
-    lb.add_argument("depth", help="16-bit PNG, millimetres, 0 = no measurement")
-    lb.add_argument("-o", "--output", required=True, help="label PNG (palette; value = class)")
-    lb.add_argument("--fx", type=float, help="focal length of the depth camera (px): warn "
+    lb.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
+    lb.add_argument("depth", type=A.existing_file(".png"),
+                    help="16-bit PNG, millimetres, 0 = no measurement")
+    lb.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
+                    help="label PNG (palette; value = class)")
+    lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                    help="focal length of the depth camera (px): warn "
                                              "if it differs from the training one")
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")
-    x.add_argument("forest", help="forest .npz")
+    x.add_argument("forest", type=A.existing_file(".npz"), help="forest .npz")
     x.add_argument("--format", choices=["pcl"], default="pcl",
                    help="pcl: one PCL gpu/people text tree per file")
-    x.add_argument("-o", "--output", required=True, help="output folder")
+    x.add_argument("-o", "--output", required=True, type=A.output_path(), help="output folder")
     x.set_defaults(func=_cmd_export)
 
     return fp

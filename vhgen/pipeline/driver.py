@@ -4,14 +4,23 @@ Only metadata travels back to the driver; every actor writes its own shards. A t
 retried (on a restarted actor if the process died); because frames are deterministic and
 a shard is rewritten whole, a retry never duplicates or loses a frame, and the final
 manifest merge checks that every frame appears exactly once.
+
+Start-up is overlapped: the local Ray starts while a thread reads and retargets the
+motions, and the actors set up their GL context and warm their compiled kernels while
+the driver plans and writes the store's metadata; the poses reach them afterwards.
+A write that fails (disk full, read-only output) stops the dispatch, lets the shards in
+flight finish, and raises one line; every finished shard stays, ``--resume`` completes.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
 import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -22,10 +31,11 @@ from vhgen.assets import resolve_asset_dir
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import build_body
 from vhgen.config import JobConfig
-from vhgen.errors import StoreError, VhgenError
+from vhgen.errors import RenderError, StoreError, VhgenError
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
-from vhgen.pipeline.plan import make_plan
-from vhgen.pipeline.poses import load_poses
+from vhgen.pipeline.plan import Plan, make_plan
+from vhgen.pipeline.poses import PoseSet, load_poses
+from vhgen.pipeline.progress import Progress
 from vhgen.pipeline.resources import actor_options
 from vhgen.store.manifest import merge_parts
 from vhgen.store.zarr_store import clean_partials, completed_shards, create_store, read_attrs
@@ -33,178 +43,316 @@ from vhgen.store.zarr_store import clean_partials, completed_shards, create_stor
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3  # retries of one shard after its worker died
+_RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor")
 
 
 class FrameWorker:
-    """Ray actor body: one GL context per actor, one shard per call."""
+    """Ray actor body: one GL context per actor, one shard per call.
 
-    def __init__(self, cfg, asset_dir, shared_refs, avatars, fail_once=None):
+    ``__init__`` does the set-up that needs only the config (GL context, compiled sensor
+    kernels), so it runs while the driver is still planning; :meth:`load` then receives
+    the poses and the plan. ``faults`` (tests only): ``{"die_once": (marker folder,
+    shards)}`` kills the process the first time one of those shards is attempted;
+    ``{"write_error": (errno, shards)}`` makes writing those shards fail with that OSError;
+    ``{"setup_error": message}`` makes the set-up fail with a RenderError.
+    """
+
+    def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
+        from vhgen.pipeline.resources import worker_context
+        from vhgen.render.context import create_context
+        from vhgen.sensor.model import SensorModel
+
+        self.cfg = cfg
+        self.asset_dir = asset_dir
+        self.faults = faults or {}
+        self.gen: Any = None
+        # a user-facing failure here (no GL backend, ...) is kept and raised by load():
+        # a constructor's exception reaches the driver only as a multi-line traceback
+        self.setup_error: VhgenError | None = None
+        try:
+            if "setup_error" in self.faults:
+                raise RenderError(self.faults["setup_error"])
+            # llvmpipe (Mesa's software GL) would start one thread per core in every actor;
+            # the actors are the parallelism. Read when the first context is created, so
+            # set here, in the actor's own process: no runtime_env needed (which would cost
+            # a runtime-env round trip and a fresh worker process per actor)
+            os.environ.setdefault("LP_NUM_THREADS", "1")
+            # a GPU worker opens the EGL device Ray gave it; otherwise the config's backend
+            self.ctx = worker_context(cfg, os.environ.get("CUDA_VISIBLE_DEVICES")) \
+                or create_context(cfg.backend)
+            # load (or compile) the sensor's numba kernels now, not in the first frame
+            h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
+            normal = np.zeros((h, w, 3), np.float32)
+            normal[..., 2] = -1.0
+            SensorModel(cfg.sensor).simulate(
+                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
+                labels=np.ones((h, w), np.uint8), normals=normal,
+                projector_depth=np.full((h, w), 2.0, np.float32))
+        except VhgenError as e:
+            self.setup_error = e
+
+    def load(self, shared_refs: list, avatars: list[dict]) -> str:
+        """Receive poses and plan (nested refs: zero-copy from the object store); returns
+        the GL renderer string."""
         import ray
 
         from vhgen.pipeline.frames import FrameGenerator
-        from vhgen.pipeline.resources import worker_context
 
-        # the big arrays arrive as nested refs (zero-copy from the object store); passing
-        # them as top-level arguments would tie actor restarts to their lifetime
+        if self.setup_error is not None:
+            raise self.setup_error
         rotations, roots, pose_meta, plan_arrays = ray.get(list(shared_refs))
-        self.gen = FrameGenerator(cfg, asset_dir, rotations, roots, pose_meta, plan_arrays,
-                                  avatars, context=worker_context(
-                                      cfg, os.environ.get("CUDA_VISIBLE_DEVICES")))
-        self.fail_once = fail_once  # (marker folder, shards) for fault-injection tests
+        self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
+                                  plan_arrays, avatars, context=self.ctx)
+        return str(self.gen.renderer_info)
 
-    def renderer(self) -> str:
-        return self.gen.renderer_info
-
-    def run(self, store, shard, start, stop):
-        if self.fail_once is not None and shard in self.fail_once[1]:
+    def run(self, store: str, shard: int, start: int, stop: int) -> dict:
+        die = self.faults.get("die_once")
+        if die is not None and shard in die[1]:
             # die as a killed process would, the first time this shard is attempted
-            marker = Path(self.fail_once[0]) / f"failed-{shard}"
+            marker = Path(die[0]) / f"failed-{shard}"
             if not marker.exists():
                 marker.touch()
                 os._exit(1)
-        return self.gen.run_task(store, shard, start, stop)
+        bad = self.faults.get("write_error")
+        if bad is not None and shard in bad[1]:
+            import vhgen.pipeline.frames as frames
+
+            real = frames.write_shard
+
+            def failing(path: str | Path, *args: Any, **kw: Any) -> None:
+                raise OSError(bad[0], os.strerror(bad[0]), str(Path(path) / "depth"))
+
+            frames.write_shard = failing
+            try:
+                return self.gen.run_task(store, shard, start, stop)
+            finally:
+                frames.write_shard = real
+        t = time.perf_counter()
+        result = self.gen.run_task(store, shard, start, stop)
+        return {**result, "seconds": time.perf_counter() - t}
 
 
-def _ray_init(num_workers: int, address: str | None):
-    import ray
+@dataclass
+class _Prepared:
+    """The driver's share of the start-up, computed while Ray starts."""
 
-    if ray.is_initialized():
-        return False
-    address = address or os.environ.get("RAY_ADDRESS")
-    if address:
-        ray.init(address=address, logging_level=logging.WARNING)
-    else:
-        ray.init(num_cpus=num_workers, include_dashboard=False, logging_level=logging.WARNING,
-                 log_to_driver=True)
-    return True
+    asset_dir: Path
+    scheme: LabelScheme
+    rig_bones: list[str]
+    poses: PoseSet
+    plan: Plan
 
 
-def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
-            resume: bool = False, overwrite: bool = False, fail_once_shards=None) -> dict:
-    """Generate the dataset described by ``cfg`` into the Zarr group ``out``.
-
-    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files).
-    ``fail_once_shards`` (tests only): shards whose first attempt kills its worker.
-    """
-    import ray
-
-    t0 = time.perf_counter()
-    out = Path(out)
+def _prepare(cfg: JobConfig, max_frames: int | None) -> _Prepared:
     asset_dir = resolve_asset_dir(cfg.assets)
     scheme = LabelScheme.load(cfg.labels)
     rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
     base = build_body(asset_dir, scheme)
     poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
     plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
-    t_read = time.perf_counter() - t0
-    intr = cfg.sensor.intrinsics
-    attrs = {
-        "vhgen_version": __version__,
-        "config_name": cfg.name,
-        "seed": cfg.seed,
-        "label_scheme": scheme.name,
-        "label_names": scheme.names,
-        "label_colors": scheme.palette.tolist(),
-        "rig_bones": base.rig.names,
-        "sensor": cfg.sensor.to_dict(),
-        "depth_units": "millimetre (uint16), 0 = no measurement",
-        "frames_per_shard": cfg.frames_per_shard,
-        "num_frames": plan.num_frames,
-        "motions": poses.report,
-    }
-    if resume and (out / "zarr.json").is_file():
-        old = read_attrs(out)
-        for k in ("seed", "num_frames", "frames_per_shard", "label_names", "sensor"):
-            if json.dumps(old.get(k), sort_keys=True) != json.dumps(attrs[k], sort_keys=True):
-                raise StoreError(f"{out}: cannot resume, {k!r} differs from this config")
-        n_clean = clean_partials(out)
-        if n_clean:
-            log.warning("removed %d partial files left by a killed writer", n_clean)
-    else:
-        create_store(out, num_frames=plan.num_frames, height=intr.height, width=intr.width,
-                     frames_per_shard=cfg.frames_per_shard,
-                     compression_level=cfg.compression_level, attrs=attrs, overwrite=overwrite,
-                     raw11=cfg.sensor.encoding.raw11)
-    done = completed_shards(out)
-    todo = [t for t in plan.tasks if t.shard not in done]
-    log.info("%d frames in %d shards (%d to do), %d poses from %d motion files", plan.num_frames,
-             len(plan.tasks), len(todo), poses.num_poses, len(poses.motion_files))
+    if max_frames is not None and max_frames < plan.num_frames:
+        plan = _truncate(plan, max_frames)
+    return _Prepared(asset_dir, scheme, list(base.rig.names), poses, plan)
 
-    started = _ray_init(cfg.num_workers, ray_address)
+
+def _truncate(plan: Plan, n: int) -> Plan:
+    """The first ``n`` frames of a plan (the same frames, seeds and shards as the full job)."""
+    tasks = [replace(t, stop=min(t.stop, n)) for t in plan.tasks if t.start < n]
+    return replace(plan, num_frames=n, avatar_id=plan.avatar_id[:n],
+                   pose_index=plan.pose_index[:n], seeds=plan.seeds[:n], tasks=tasks)
+
+
+def check_output(out: Path, *, resume: bool, overwrite: bool) -> None:
+    """Refuse, before any work, an output that cannot be written or must not be replaced."""
+    if out.exists():
+        if not out.is_dir():
+            raise StoreError(f"{out}: exists and is not a folder")
+        is_store = (out / "zarr.json").is_file()
+        if not (resume or overwrite):
+            raise StoreError(f"{out}: exists; pass --resume to finish it or --overwrite to "
+                             "replace it")
+        if not is_store and any(out.iterdir()):
+            # creating the store deletes the folder's contents: only ever a store we wrote
+            raise StoreError(f"{out}: a folder that is not a vhgen store and not empty; "
+                             "choose another --out")
+        target = out
+    else:
+        target = out.parent
+        while not target.exists() and target != target.parent:
+            target = target.parent
+    if not os.access(target, os.W_OK | os.X_OK):
+        why = "read-only file system" if _read_only(target) else "permission denied"
+        raise StoreError(f"{out}: cannot write output ({target}: {why})")
+
+
+def _read_only(path: Path) -> bool:
     try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
+
+
+def _os_error_line(e: OSError, out: Path, what: str) -> str:
+    name = errno.errorcode.get(e.errno or 0, "")
+    hint = {errno.ENOSPC: "free space", errno.EDQUOT: "raise the quota",
+            errno.EROFS: "make the output writable", errno.EACCES: "fix the permissions"}
+    return (f"{out}: {what}: {e.strerror or e} ({name}{': ' + e.filename if e.filename else ''})"
+            f"; finished shards are kept: {hint.get(e.errno or 0, 'fix the cause')}, then "
+            "rerun with --resume")
+
+
+def _ray_env(local: bool) -> None:
+    """Environment for Ray, set before it starts (the workers of a local Ray inherit it),
+    and Ray's notices that do not concern a vhgen user hidden (shown with --verbose)."""
+    if local:
+        # a new local Ray turns token authentication on and warns about it unless the
+        # mode is set: keep it on, explicitly, which is what silences the warning
+        os.environ.setdefault("RAY_AUTH_MODE", "token")
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if not logging.getLogger("vhgen").isEnabledFor(logging.DEBUG):
+        # joining a cluster with a token in ~/.ray warns the same way (Ray's own module
+        # logger: only its warnings about the authentication mode are hidden)
+        logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(
+            logging.ERROR)
+
+
+def _ray_init(num_workers: int, address: str | None) -> bool:
+    import ray
+
+    if ray.is_initialized():
+        return False
+    level = logging.INFO if logging.getLogger("vhgen").isEnabledFor(logging.DEBUG) \
+        else logging.ERROR
+    if address:
+        ray.init(address=address, logging_level=level)
+    else:
+        ray.init(num_cpus=num_workers, include_dashboard=False, logging_level=level,
+                 log_to_driver=True)
+    return True
+
+
+def _shutdown_local_ray(ray) -> None:
+    """ray.shutdown() of the Ray this driver started, without its 1 s stall.
+
+    Ray stops its processes one by one, each given up to 1 s to exit after SIGTERM; the
+    autoscaler monitor of a local head always uses the whole second (measured: 1.01 s of
+    a 1.25 s shutdown). It holds no state of ours, so it is killed first. Ray's private
+    node handle is used defensively: if it changes, this is a plain ray.shutdown().
+    """
+    try:
+        node = ray._private.worker._global_node
+        for info in node.all_processes.get("monitor", []):
+            info.process.kill()
+    except (AttributeError, KeyError, OSError):
+        pass
+    ray.shutdown()
+
+
+def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
+            resume: bool = False, overwrite: bool = False, max_frames: int | None = None,
+            progress: bool = False, faults: dict | None = None) -> dict:
+    """Generate the dataset described by ``cfg`` into the Zarr group ``out``.
+
+    max_frames : only the plan's first N frames (same frames and seeds as the full job).
+    progress : show frames done, frames/s and ETA (a bar on a terminal, log lines
+        otherwise).
+    faults : fault injection for tests (see :class:`FrameWorker`).
+    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files) with
+    the timings: ``ray_init_seconds``, ``first_shard_seconds`` (start to the first shard
+    written), ``tail_seconds`` (last shard to return), ``steady_seconds_per_frame`` (one
+    worker) and ``fixed_seconds`` (wall time minus the frames at the steady rate).
+    """
+    t0 = time.perf_counter()
+    out = Path(out)
+    check_output(out, resume=resume, overwrite=overwrite)
+    asset_dir = resolve_asset_dir(cfg.assets)  # missing assets: fail before Ray starts
+    if resume and (out / "zarr.json").is_file():
+        _check_same_config(out, _config_attrs(cfg, LabelScheme.load(cfg.labels)))
+    address = ray_address or os.environ.get("RAY_ADDRESS")
+    _ray_env(local=not address)
+    import ray
+
+    pool = ThreadPoolExecutor(1, thread_name_prefix="vhgen-prepare")
+    prepared = pool.submit(_prepare, cfg, max_frames)
+    started = False
+    actors: list = []
+    try:
+        started = _ray_init(cfg.num_workers, address)
+        t_ray = time.perf_counter() - t0
+        # Actors are not restarted by Ray: the driver replaces a dead actor itself and
+        # resubmits its shard, so a restart never depends on constructor arguments.
+        opts = actor_options(cfg, ray.cluster_resources() if started else None)
+        actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
+        faults = dict(faults or {})
+        if "die_once" in faults:
+            (out.parent / f".{out.name}.faults").mkdir(parents=True, exist_ok=True)
+            faults["die_once"] = (str(out.parent / f".{out.name}.faults"),
+                                  set(faults["die_once"]))
+        def new_actor(asset_dir: Path):
+            return actor_cls.remote(cfg, str(asset_dir), faults)
+
+        # actors set up (GL, kernels) while the driver's thread finishes reading poses
+        actors = [new_actor(asset_dir) for _ in range(cfg.num_workers)]
+        p = prepared.result()
+        plan, poses = p.plan, p.poses
+        _open_store(cfg, out, p, resume)
+        done = completed_shards(out)
+        todo = [t for t in plan.tasks if t.shard not in done]
+        log.info("%d frames in %d shards (%d to do), %d poses from %d motion files",
+                 plan.num_frames, len(plan.tasks), len(todo), poses.num_poses,
+                 len(poses.motion_files))
+        for a in actors[max(1, len(todo)):]:
+            ray.kill(a)
+        actors = actors[:max(1, len(todo))]
         pose_meta = {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
                      "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1}
         plan_arrays = {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
                        "seeds": plan.seeds}
         refs = [ray.put(x) for x in (poses.rotations, poses.roots, pose_meta, plan_arrays)]
-        # Actors are not restarted by Ray: the driver replaces a dead actor itself and
-        # resubmits its shard, so a restart never depends on constructor arguments.
-        opts = actor_options(cfg, ray.cluster_resources() if started else None)
-        actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
-        n_actors = max(1, min(cfg.num_workers, len(todo)))
-        fail_once = None
-        if fail_once_shards:
-            (out / "_faults").mkdir(exist_ok=True)
-            fail_once = (str(out / "_faults"), set(fail_once_shards))
-
-        def new_actor():
-            return actor_cls.options(runtime_env={"env_vars": {"LP_NUM_THREADS": "1"}}).remote(
-                cfg, str(asset_dir), refs, plan.avatars, fail_once)
-
-        actors = [new_actor() for _ in range(n_actors)]
-        renderers = sorted(set(ray.get([a.renderer.remote() for a in actors])))
+        try:
+            renderers = sorted(set(ray.get([a.load.remote(refs, plan.avatars)
+                                            for a in actors])))
+        except ray.exceptions.RayTaskError as e:
+            if isinstance(getattr(e, "cause", None), VhgenError):
+                raise VhgenError(f"worker set-up: {e.cause}") from None
+            raise
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
-        pending: dict[Any, tuple[Any, Any]] = {}
-        queue = list(todo)
-        attempts = {t.shard: 0 for t in todo}
-        results = []
-        idle = list(actors)
-        while queue or pending:
-            while queue and idle:
-                actor = idle.pop()
-                task = queue.pop(0)
-                attempts[task.shard] += 1
-                ref = actor.run.remote(str(out), task.shard, task.start, task.stop)
-                pending[ref] = (actor, task)
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                actor, task = pending.pop(ref)
-                try:
-                    results.append(ray.get(ref))
-                    idle.append(actor)
-                except ray.exceptions.RayActorError as e:
-                    # the process died (OOM kill, segfault, node loss): replace the actor,
-                    # redo the whole shard; frames are deterministic, so nothing duplicates
-                    if attempts[task.shard] > MAX_ATTEMPTS:
-                        raise VhgenError(f"shard {task.shard} (frames {task.start}-"
-                                         f"{task.stop}): worker died {MAX_ATTEMPTS + 1} times; "
-                                         f"last: {e}. Rerun with --resume.") from e
-                    log.warning("worker died on shard %d (attempt %d), retrying on a new "
-                                "worker", task.shard, attempts[task.shard])
-                    queue.insert(0, task)
-                    idle.append(new_actor())
-                except ray.exceptions.RayTaskError as e:
-                    raise VhgenError(f"shard {task.shard} (frames {task.start}-{task.stop}) "
-                                     f"failed: {e}. Fix the cause, then rerun with --resume "
-                                     "to finish the remaining shards.") from e
+        bar = Progress(sum(t.stop - t.start for t in todo), enabled=progress)
+        results, attempts, first_frame = _dispatch(
+            ray, actors, todo, out, bar, lambda: _loaded(new_actor(asset_dir), refs, plan))
+        bar.close()
         t_render = time.perf_counter() - t_render
-        for a in idle:
-            ray.kill(a)
+        t_last = time.perf_counter()
     finally:
+        pool.shutdown(wait=True)
+        for a in actors:
+            ray.kill(a)
         if started:
-            ray.shutdown()
-    if fail_once_shards:
+            _shutdown_local_ray(ray)
+    if "die_once" in faults:
         import shutil
 
-        shutil.rmtree(out / "_faults", ignore_errors=True)
-    merge_parts(out, plan.num_frames)
-    with open(out / "report.json", "w") as f:
-        json.dump({"motions": poses.report, "renderers": renderers}, f, indent=1)
+        shutil.rmtree(out.parent / f".{out.name}.faults", ignore_errors=True)
+    try:
+        merge_parts(out, plan.num_frames)
+        with open(out / "report.json", "w") as f:
+            json.dump({"motions": poses.report, "renderers": renderers}, f, indent=1)
+    except OSError as e:
+        raise StoreError(_os_error_line(e, out, "cannot write the manifest")) from None
     skipped = [r for r in poses.report if r["status"] != "ok"]
+    intr = cfg.sensor.intrinsics
+    t_end = time.perf_counter()
+    per_frame = _steady_seconds_per_frame(results)
     return {"frames": plan.num_frames, "shards": len(plan.tasks), "written": len(results),
-            "seconds": time.perf_counter() - t0, "read_seconds": t_read,
+            "seconds": t_end - t0, "read_seconds": t_ray, "ray_init_seconds": t_ray,
             "render_seconds": t_render, "renderers": renderers, "skipped": skipped,
+            "first_shard_seconds": (first_frame or t_end) - t0, "tail_seconds": t_end - t_last,
+            "steady_seconds_per_frame": per_frame,
+            # everything that does not grow with the frames: the job's wall time minus the
+            # frames at the steady rate of its workers
+            "fixed_seconds": t_end - t0 - sum(t.stop - t.start for t in todo) * per_frame
+            / max(1, len(actors)),
             "store": str(out), "poses": poses.num_poses,
             "retries": sum(attempts.values()) - len(todo),
             # scene objects that found no place after bounded retries (manifest: scene)
@@ -213,3 +361,120 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             "valid_fraction": float(np.mean([r["valid_pixels"] for r in results]) /
                                     (intr.width * intr.height * cfg.frames_per_shard))
             if results else 0.0}
+
+
+def _steady_seconds_per_frame(results: list[dict]) -> float:
+    """Median seconds per frame of one worker over the shards it ran (render, sensor and
+    write; a worker's first shard, which builds its first avatar, counts like the rest)."""
+    rates = [r["seconds"] / r["frames"] for r in results if r.get("seconds")]
+    return float(np.median(rates)) if rates else 0.0
+
+
+def _loaded(actor, refs: list, plan: Plan):
+    actor.load.remote(refs, plan.avatars)  # queued before any run() on the same actor
+    return actor
+
+
+def _open_store(cfg: JobConfig, out: Path, p: _Prepared, resume: bool) -> None:
+    """Create the store, or check that the one to resume was made by the same config."""
+    plan = p.plan
+    intr = cfg.sensor.intrinsics
+    attrs = {**_config_attrs(cfg, p.scheme), "rig_bones": p.rig_bones,
+             "num_frames": plan.num_frames, "motions": p.poses.report}
+    try:
+        if resume and (out / "zarr.json").is_file():
+            _check_same_config(out, attrs)
+            n_clean = clean_partials(out)
+            if n_clean:
+                log.warning("removed %d partial files left by a killed writer", n_clean)
+        else:
+            create_store(out, num_frames=plan.num_frames, height=intr.height, width=intr.width,
+                         frames_per_shard=cfg.frames_per_shard,
+                         compression_level=cfg.compression_level, attrs=attrs,
+                         overwrite=True, raw11=cfg.sensor.encoding.raw11)
+    except OSError as e:
+        raise StoreError(_os_error_line(e, out, "cannot create the store")) from None
+
+
+def _config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict:
+    """The store attributes that follow from the config alone."""
+    return {
+        "vhgen_version": __version__,
+        "config_name": cfg.name,
+        "seed": cfg.seed,
+        "label_scheme": scheme.name,
+        "label_names": scheme.names,
+        "label_colors": scheme.palette.tolist(),
+        "sensor": cfg.sensor.to_dict(),
+        "depth_units": "millimetre (uint16), 0 = no measurement",
+        "frames_per_shard": cfg.frames_per_shard,
+    }
+
+
+def _check_same_config(out: Path, attrs: dict) -> None:
+    """Refuse to resume a store made by another config (the keys present in ``attrs``)."""
+    old = read_attrs(out)
+    for k in _RESUME_KEYS:
+        if k in attrs and json.dumps(old.get(k), sort_keys=True) != json.dumps(
+                attrs[k], sort_keys=True):
+            raise StoreError(f"{out}: made by another config ({k!r} differs: store "
+                             f"{_short(old.get(k))}, config {_short(attrs[k])}); "
+                             "cannot resume it (use another --out or --overwrite)")
+
+
+def _short(v: Any) -> str:
+    s = json.dumps(v, sort_keys=True)
+    return s if len(s) <= 40 else s[:37] + "..."
+
+
+def _dispatch(ray, actors: list, todo: list, out: Path, bar: Progress, new_actor):
+    """Run every task on the actors (one in flight per actor). On a write failure, stop
+    dispatching, let the tasks in flight finish, then raise one line."""
+    pending: dict = {}
+    queue = list(todo)
+    attempts = {t.shard: 0 for t in todo}
+    results = []
+    idle = list(actors)
+    first_frame: float | None = None
+    error: VhgenError | None = None
+    while (queue and error is None) or pending:
+        while queue and idle and error is None:
+            actor = idle.pop()
+            task = queue.pop(0)
+            attempts[task.shard] += 1
+            pending[actor.run.remote(str(out), task.shard, task.start, task.stop)] = (actor,
+                                                                                     task)
+        ready, _ = ray.wait(list(pending), num_returns=1)
+        for ref in ready:
+            actor, task = pending.pop(ref)
+            try:
+                results.append(ray.get(ref))
+                idle.append(actor)
+                bar.update(task.stop - task.start)
+                first_frame = first_frame or time.perf_counter()
+            except ray.exceptions.RayActorError:
+                # the process died (OOM kill, segfault, node loss): replace the actor,
+                # redo the whole shard; frames are deterministic, so nothing duplicates
+                if attempts[task.shard] > MAX_ATTEMPTS:
+                    error = error or VhgenError(
+                        f"shard {task.shard} (frames {task.start}-{task.stop}): worker died "
+                        f"{MAX_ATTEMPTS + 1} times; rerun with --resume")
+                    continue
+                log.warning("worker died on shard %d (attempt %d), retrying on a new worker",
+                            task.shard, attempts[task.shard])
+                queue.insert(0, task)
+                idle.append(new_actor())
+            except ray.exceptions.RayTaskError as e:
+                idle.append(actor)
+                cause = getattr(e, "cause", None)
+                if isinstance(cause, OSError):
+                    err: VhgenError = StoreError(_os_error_line(
+                        cause, out, f"cannot write shard {task.shard}"))
+                elif isinstance(cause, VhgenError):
+                    err = VhgenError(f"shard {task.shard}: {cause}")
+                else:
+                    raise  # a bug: keep the worker's traceback
+                error = error or err
+    if error is not None:
+        raise error
+    return results, attempts, first_frame
