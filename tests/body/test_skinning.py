@@ -94,3 +94,21 @@ def test_export_formats(tmp_path, body):
         assert len(back.faces) == len(body.faces), suffix
     colors = mesh.visual.face_colors[:, :3]
     np.testing.assert_array_equal(colors, body.scheme.palette[body.face_labels])
+
+
+@pytest.mark.parametrize("clip", ["05_06.bvh", "49_06.bvh"])
+def test_compiled_cpu_skinning_equals_the_float64_reference(body, shared_mocap, clip):
+    """skin_points (placement, floor contact) against skin_vertices on real poses: same
+    points up to float64 rounding, whatever the order of the sums."""
+    from vhgen.body.kernels import skin_points
+
+    m = read_bvh(shared_mocap / clip)
+    rot, root = build_retargeter(m, body.rig, detect_dialect(m, load_all_maps())).apply(
+        m, frames=np.arange(0, m.num_frames, max(1, m.num_frames // 6)))
+    for f in range(len(rot)):
+        mats = bone_matrices(body.rig, rot[f], root[f])
+        ref = skin_vertices(body.vertices, body.joints, body.weights, mats)
+        np.testing.assert_allclose(skin_points(body.vertices, body.joints, body.weights,
+                                               mats), ref, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="matrices must be"):
+        skin_points(body.vertices, body.joints, body.weights, mats[None])

@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from vhgen.body.kernels import skin_points
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import Body, build_body
 from vhgen.body.shape import Shape
-from vhgen.body.skinning import bone_matrices, posed_heads, skin_vertices
+from vhgen.body.skinning import bone_matrices, posed_heads
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
 from vhgen.scene.config import BEHIND_M, CAMERA_CLEARANCE_M
@@ -109,8 +110,8 @@ class FrameDescriber:
         offset = np.array([-root[0], 0.0, -root[2]])
         disc = None
         if ground or footprint:
-            verts = skin_vertices(body.vertices, body.joints, body.weights,
-                                  bone_matrices(body.rig, rot, root + offset))
+            verts = skin_points(body.vertices, body.joints, body.weights,
+                                bone_matrices(body.rig, rot, root + offset))
             lowest = verts[:, 1].min()
             if ground and lowest < FLOOR_SNAP_M:
                 offset[1] = -lowest
