@@ -203,8 +203,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="folder for confusion.png and contact_sheet.png")
     e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
     e.add_argument("--fx", type=A.float_range(0, lo_open=True),
-                   help="training focal length of PCL trees (for the "
-                                            "focal-length check)")
+                   help="training focal length of PCL trees (for the focal-length check)")
     e.set_defaults(func=_cmd_eval)
 
     lb = fsub.add_parser("label", help="label a 16-bit millimetre depth PNG")
@@ -214,8 +213,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
                     help="label PNG (palette; value = class)")
     lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
-                    help="focal length of the depth camera (px): warn "
-                                             "if it differs from the training one")
+                    help="focal length of the depth camera (px): warn if it differs from "
+                         "the training one")
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")
