@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/bench_memory.py --frames 20000 --workers 2 --every 1000
 
-Runs the real job (``run_job`` through Ray, the shared CMU corpus, many avatars so actors
+Runs the real job (``run_job`` with ``--executor``: local worker processes or Ray actors;
+the shared CMU corpus, many avatars so actors
 also switch bodies) and, from a thread of the driver, samples the RSS of each
 ``FrameWorker`` actor process (found among this process's descendants) whenever another
 ``--every`` frames have been written (counted from the manifest parts on disk). Prints
@@ -61,7 +62,9 @@ def actor_rss_mb(root: int) -> dict[int, float]:
         todo += kids.get(pid, [])
         try:
             cmd = (Path("/proc") / str(pid) / "cmdline").read_bytes()
-            if not cmd.startswith(b"ray::FrameWorker"):
+            # a Ray actor names itself; a local worker runs vhgen.pipeline.local.serve
+            if not (cmd.startswith(b"ray::FrameWorker")
+                    or b"from vhgen.pipeline.local import serve" in cmd):
                 continue
             for line in (Path("/proc") / str(pid) / "status").read_text().splitlines():
                 if line.startswith("VmRSS:"):
@@ -82,6 +85,8 @@ def main() -> None:
     ap.add_argument("--sensor", default="kinect_v1_full")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
     ap.add_argument("--frames-per-shard", type=int, default=32)
+    ap.add_argument("--executor", choices=["local", "ray"], default="local",
+                    help="worker processes of this machine or Ray actors")
     ap.add_argument("--out", help="store path (default: a temporary folder, removed)")
     args = ap.parse_args()
 
@@ -117,7 +122,7 @@ def main() -> None:
         total = cfg.avatars.count * poses.num_poses
         out = Path(args.out) if args.out else Path(tmp) / "memory.zarr"
         print(f"{total} frames: {poses.num_poses} poses x {cfg.avatars.count} avatars, "
-              f"{args.workers} actors, sensor {args.sensor}, backend {args.backend}")
+              f"{args.workers} {args.executor} workers, sensor {args.sensor}, backend {args.backend}")
 
         samples: list[tuple[int, float, dict[int, float]]] = []
         done = threading.Event()
@@ -137,7 +142,7 @@ def main() -> None:
         th = threading.Thread(target=sample, daemon=True)
         th.start()
         try:
-            summary = run_job(cfg, out, overwrite=True)
+            summary = run_job(cfg, out, overwrite=True, executor=args.executor)
         finally:
             done.set()
             th.join()

@@ -162,7 +162,8 @@ def main() -> None:
           f"renderer {gen.renderer_info}, {os.cpu_count()} CPUs")
     print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
     for name, count, sec in rows:
-        print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
+        print(f"{name:42s} {count:7d} {sec:9.3f} {count / max(sec, 1e-9):10.1f} "
+              f"{1000 * sec / count:9.2f}")
     print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
           f"instances, classes; zstd {cfg.compression_level})")
     if ratio is not None:
@@ -206,38 +207,47 @@ def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[floa
     return t_scene[0] / t_person, t_scene[1] / t_person
 
 
-def fixed_cost(cfg, steps) -> list[tuple[str, int, float]]:
-    """Rows: the two timed jobs, the steady time per frame and the fixed cost (intercept)."""
+def fixed_cost(cfg, steps, executors=("local", "ray")) -> list[tuple[str, int, float]]:
+    """Rows per executor (local worker processes, Ray actors): the two timed jobs, the
+    steady time per frame and the fixed cost (intercept), run one after the other."""
+    import inspect
+
     import vhgen
     from vhgen.pipeline.driver import run_job
 
-    runs, rows = [], []
-    for step in steps:
-        c = replace(cfg, poses=replace(cfg.poses, frame_step=step))
-        with tempfile.TemporaryDirectory() as tmp:
-            t = time.perf_counter()
-            summary = run_job(c, Path(tmp) / "fixed.zarr")
-            runs.append((summary["frames"], time.perf_counter() - t))
-            if "fixed_seconds" in summary:  # the in-run estimate (this version only)
-                rows.append((f"fixed cost in-run, {summary['frames']} frames", 1,
-                             summary["fixed_seconds"]))
-                for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
-                    rows.append((f"  {k.replace('_seconds', '')}", 1, summary[k]))
-    (n1, t1), (n2, t2) = runs
-    per_frame = (t2 - t1) / (n2 - n1)
-    fixed = t1 - n1 * per_frame
     where = Path(vhgen.__file__).resolve().parent.parent.name
-    return [*rows, (f"job, {n1} frames ({where})", n1, t1),
-            (f"job, {n2} frames ({where})", n2, t2),
-            (f"steady time per frame ({where})", 1, per_frame),
-            (f"fixed cost = T(0) ({where})", 1, fixed)]
+    has_executor = "executor" in inspect.signature(run_job).parameters
+    rows = []
+    for ex in executors if has_executor else ("ray",):  # an older checkout: Ray only
+        runs = []
+        for step in steps:
+            c = replace(cfg, poses=replace(cfg.poses, frame_step=step))
+            kw = {"executor": ex} if has_executor else {}
+            with tempfile.TemporaryDirectory() as tmp:
+                t = time.perf_counter()
+                summary = run_job(c, Path(tmp) / "fixed.zarr", **kw)
+                runs.append((summary["frames"], time.perf_counter() - t))
+                if "fixed_seconds" in summary:  # the in-run estimate (newer versions)
+                    rows.append((f"{ex}: fixed cost in-run, {summary['frames']} frames", 1,
+                                 summary["fixed_seconds"]))
+                    for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
+                        if summary.get(k):
+                            rows.append((f"  {k.replace('_seconds', '')}", 1, summary[k]))
+        (n1, t1), (n2, t2) = runs
+        per_frame = (t2 - t1) / (n2 - n1)
+        rows += [(f"{ex}: job, {n1} frames ({where})", n1, t1),
+                 (f"{ex}: job, {n2} frames ({where})", n2, t2),
+                 (f"{ex}: steady time per frame ({where})", 1, per_frame),
+                 (f"{ex}: fixed cost = T(0) ({where})", 1, t1 - n1 * per_frame)]
+    return rows
 
 
 def print_rows(rows, title: str) -> None:
     print(f"\n{title}")
     print(f"{'stage':42s} {'items':>7s} {'seconds':>9s} {'items/s':>10s} {'ms/item':>9s}")
     for name, count, sec in rows:
-        print(f"{name:42s} {count:7d} {sec:9.3f} {count / sec:10.1f} {1000 * sec / count:9.2f}")
+        print(f"{name:42s} {count:7d} {sec:9.3f} {count / max(sec, 1e-9):10.1f} "
+              f"{1000 * sec / count:9.2f}")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
     ray job submit --working-dir . -- python jobs/generate.py configs/scenes/default.yaml \
         --out /shared/datasets/default.zarr
 
-Inside a Ray job RAY_ADDRESS is set, so the driver joins the cluster instead of starting
-a local Ray.
+Inside a Ray job RAY_ADDRESS is set and the driver joins the cluster; ``--executor ray``
+is passed first so that the workers are Ray actors even if it is not (a later
+``--executor`` on the command line wins).
 """
 
 import sys
@@ -12,4 +13,4 @@ import sys
 from vhgen.cli import main
 
 if __name__ == "__main__":
-    sys.exit(main(["generate", *sys.argv[1:]]))
+    sys.exit(main(["generate", "--executor", "ray", *sys.argv[1:]]))

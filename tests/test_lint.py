@@ -20,3 +20,22 @@ def test_mypy_clean():
                          text=True)
     assert res.returncode == 0, res.stdout + res.stderr
     assert "Success" in res.stdout
+
+
+def test_no_merge_conflict_markers():
+    """No file of the repository keeps a merge's conflict markers (docs included)."""
+    import re
+
+    marker = re.compile(r"^(<{7}|>{7})( |$)", re.M)
+    bad = []
+    for sub in ("vhgen", "docs", "configs", "tests", "benchmarks", "jobs", "scripts",
+                "cluster"):
+        for p in (REPO / sub).rglob("*"):
+            if p.suffix in {".py", ".md", ".yaml", ".yml", ".toml", ".txt", ".glsl", ".sh"}:
+                if marker.search(p.read_text(errors="replace")):
+                    bad.append(str(p.relative_to(REPO)))
+    for p in REPO.glob("*"):
+        if p.is_file() and p.suffix in {".md", ".toml", ".py", ""} and p.stat().st_size < 2e6:
+            if marker.search(p.read_text(errors="replace")):
+                bad.append(p.name)
+    assert not bad, f"conflict markers in {bad}"

@@ -85,7 +85,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     out = args.out or str(Path("out") / f"{cfg.name}.zarr")
     summary = run_job(cfg, out, ray_address=args.address, resume=args.resume,
                       overwrite=args.overwrite, max_frames=args.max_frames,
-                      progress=not args.quiet)
+                      progress=not args.quiet, executor=args.executor)
     for s in summary["skipped"]:
         print(f"skipped {s['file']}: {s['error']}", file=sys.stderr)
     print(f"wrote {summary['frames']} frames ({summary['poses']} poses) to {summary['store']} "
@@ -100,10 +100,13 @@ def _add_generate(sub: _Sub) -> None:
     g.add_argument("--out", type=A.output_path(),
                    help="output Zarr group (default out/<name>.zarr)")
     g.add_argument("--num-workers", type=A.int_range(1, 4096),
-                   help="Ray actors (one GL context each)")
+                   help="frame workers (one GL context each)")
     g.add_argument("--backend", choices=["egl", "osmesa"], help="OpenGL backend")
+    g.add_argument("--executor", choices=["auto", "local", "ray"], default="auto",
+                   help="where workers run: local processes, or Ray actors; auto (default): "
+                   "Ray with --address / RAY_ADDRESS or GPU workers, else local")
     g.add_argument("--address", type=A.text("address"),
-                   help="Ray cluster address (default: a local Ray)")
+                   help="Ray cluster address (implies Ray; without it: this machine)")
     g.add_argument("--max-frames", type=A.int_range(1),
                    help="only the first N frames of the job (a quick try; the store holds N)")
     resume = g.add_mutually_exclusive_group()

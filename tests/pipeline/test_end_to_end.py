@@ -119,11 +119,13 @@ def test_contract(smoke, shared_mocap):
 
 
 def test_same_bytes_with_one_worker(smoke, shared_mocap):
+    """Two local worker processes and one Ray actor write the same bytes."""
     import pyarrow.parquet as pq
 
-    tmp, _, _ = smoke
+    tmp, _, summary = smoke
+    assert summary["executor"] == "local"  # auto, no cluster address: local processes
     cfg1 = _config(tmp, shared_mocap, num_workers=1)
-    run_job(cfg1, tmp / "one.zarr")
+    assert run_job(cfg1, tmp / "one.zarr", executor="ray")["executor"] == "ray"
     a, b = _store_files(tmp / "two.zarr"), _store_files(tmp / "one.zarr")
     assert a.keys() == b.keys() and len(a) >= 6
     assert all(a[k] == b[k] for k in a)
@@ -132,15 +134,17 @@ def test_same_bytes_with_one_worker(smoke, shared_mocap):
     assert ma.equals(mb)
 
 
-def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap):
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap, executor):
     import pyarrow.parquet as pq
 
     tmp, cfg, _ = smoke
-    summary = run_job(cfg, tmp / "faulty.zarr", faults={"die_once": {0, 2}})
+    out = tmp / f"faulty-{executor}.zarr"
+    summary = run_job(cfg, out, faults={"die_once": {0, 2}}, executor=executor)
     assert summary["frames"] == 10 and summary["retries"] == 2
-    a, b = _store_files(tmp / "two.zarr"), _store_files(tmp / "faulty.zarr")
+    a, b = _store_files(tmp / "two.zarr"), _store_files(out)
     assert all(a[k] == b[k] for k in a)
-    man = pq.read_table(tmp / "faulty.zarr" / "manifest.parquet")
+    man = pq.read_table(out / "manifest.parquet")
     assert man.column("frame").to_pylist() == list(range(10))
 
 

@@ -1,13 +1,16 @@
-"""The Ray driver: read and retarget motions once, plan, shard tasks to GL actors.
+"""The driver: read and retarget motions once, plan, shard tasks to GL workers.
 
-Only metadata travels back to the driver; every actor writes its own shards. A task is
-retried (on a restarted actor if the process died); because frames are deterministic and
-a shard is rewritten whole, a retry never duplicates or loses a frame, and the final
-manifest merge checks that every frame appears exactly once.
+Workers are Ray actors (a cluster, ``--address``; GPU workers) or processes of this
+machine (:mod:`vhgen.pipeline.local`, the default for a local job: a local Ray costs
+seconds to start); the same :class:`~vhgen.pipeline.worker.FrameWorker` runs in both and
+the same dispatch loop drives them. Only metadata travels back to the driver; every worker
+writes its own shards. A task is retried (on a new worker if the process died); because
+frames are deterministic and a shard is rewritten whole, a retry never duplicates or loses
+a frame, and the final manifest merge checks that every frame appears exactly once.
 
-Start-up is overlapped: the local Ray starts while a thread reads and retargets the
-motions, and the actors set up their GL context and warm their compiled kernels while
-the driver plans and writes the store's metadata; the poses reach them afterwards.
+Start-up is overlapped: the workers start (and Ray, for a Ray job) while a thread reads
+and retargets the motions; they set up their GL context and warm their compiled kernels
+while the driver plans and writes the store's metadata; the poses reach them afterwards.
 A write that fails (disk full, read-only output) stops the dispatch, lets the shards in
 flight finish, and raises one line; every finished shard stays, ``--resume`` completes.
 """
@@ -31,105 +34,20 @@ from vhgen.assets import resolve_asset_dir
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import build_body
 from vhgen.config import JobConfig
-from vhgen.errors import RenderError, StoreError, VhgenError
+from vhgen.errors import StoreError, VhgenError
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import Plan, make_plan
 from vhgen.pipeline.poses import PoseSet, load_poses
 from vhgen.pipeline.progress import Progress
-from vhgen.pipeline.resources import actor_options
-from vhgen.store.manifest import merge_parts
+from vhgen.pipeline.resources import actor_options, choose_executor
+from vhgen.pipeline.worker import FrameWorker
+from vhgen.store.manifest import ManifestMerger
 from vhgen.store.zarr_store import clean_partials, completed_shards, create_store, read_attrs
 
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3  # retries of one shard after its worker died
 _RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor")
-
-
-class FrameWorker:
-    """Ray actor body: one GL context per actor, one shard per call.
-
-    ``__init__`` does the set-up that needs only the config (GL context, compiled sensor
-    kernels), so it runs while the driver is still planning; :meth:`load` then receives
-    the poses and the plan. ``faults`` (tests only): ``{"die_once": (marker folder,
-    shards)}`` kills the process the first time one of those shards is attempted;
-    ``{"write_error": (errno, shards)}`` makes writing those shards fail with that OSError;
-    ``{"setup_error": message}`` makes the set-up fail with a RenderError.
-    """
-
-    def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
-        from vhgen.pipeline.resources import worker_context
-        from vhgen.render.context import create_context
-        from vhgen.sensor.model import SensorModel
-
-        self.cfg = cfg
-        self.asset_dir = asset_dir
-        self.faults = faults or {}
-        self.gen: Any = None
-        # a user-facing failure here (no GL backend, ...) is kept and raised by load():
-        # a constructor's exception reaches the driver only as a multi-line traceback
-        self.setup_error: VhgenError | None = None
-        try:
-            if "setup_error" in self.faults:
-                raise RenderError(self.faults["setup_error"])
-            # llvmpipe (Mesa's software GL) would start one thread per core in every actor;
-            # the actors are the parallelism. Read when the first context is created, so
-            # set here, in the actor's own process: no runtime_env needed (which would cost
-            # a runtime-env round trip and a fresh worker process per actor)
-            os.environ.setdefault("LP_NUM_THREADS", "1")
-            # a GPU worker opens the EGL device Ray gave it; otherwise the config's backend
-            self.ctx = worker_context(cfg, os.environ.get("CUDA_VISIBLE_DEVICES")) \
-                or create_context(cfg.backend)
-            # load (or compile) the sensor's numba kernels now, not in the first frame
-            h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
-            normal = np.zeros((h, w, 3), np.float32)
-            normal[..., 2] = -1.0
-            SensorModel(cfg.sensor).simulate(
-                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
-                labels=np.ones((h, w), np.uint8), normals=normal,
-                projector_depth=np.full((h, w), 2.0, np.float32))
-        except VhgenError as e:
-            self.setup_error = e
-
-    def load(self, shared_refs: list, avatars: list[dict]) -> str:
-        """Receive poses and plan (nested refs: zero-copy from the object store); returns
-        the GL renderer string."""
-        import ray
-
-        from vhgen.pipeline.frames import FrameGenerator
-
-        if self.setup_error is not None:
-            raise self.setup_error
-        rotations, roots, pose_meta, plan_arrays = ray.get(list(shared_refs))
-        self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
-                                  plan_arrays, avatars, context=self.ctx)
-        return str(self.gen.renderer_info)
-
-    def run(self, store: str, shard: int, start: int, stop: int) -> dict:
-        die = self.faults.get("die_once")
-        if die is not None and shard in die[1]:
-            # die as a killed process would, the first time this shard is attempted
-            marker = Path(die[0]) / f"failed-{shard}"
-            if not marker.exists():
-                marker.touch()
-                os._exit(1)
-        bad = self.faults.get("write_error")
-        if bad is not None and shard in bad[1]:
-            import vhgen.pipeline.frames as frames
-
-            real = frames.write_shard
-
-            def failing(path: str | Path, *args: Any, **kw: Any) -> None:
-                raise OSError(bad[0], os.strerror(bad[0]), str(Path(path) / "depth"))
-
-            frames.write_shard = failing
-            try:
-                return self.gen.run_task(store, shard, start, stop)
-            finally:
-                frames.write_shard = real
-        t = time.perf_counter()
-        result = self.gen.run_task(store, shard, start, stop)
-        return {**result, "seconds": time.perf_counter() - t}
 
 
 @dataclass
@@ -250,101 +168,102 @@ def _shutdown_local_ray(ray) -> None:
 
 def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             resume: bool = False, overwrite: bool = False, max_frames: int | None = None,
-            progress: bool = False, faults: dict | None = None) -> dict:
+            progress: bool = False, executor: str = "auto", faults: dict | None = None
+            ) -> dict:
     """Generate the dataset described by ``cfg`` into the Zarr group ``out``.
 
     max_frames : only the plan's first N frames (same frames and seeds as the full job).
     progress : show frames done, frames/s and ETA (a bar on a terminal, log lines
         otherwise).
+    executor : ``local`` (worker processes on this machine), ``ray`` (Ray actors: the
+        cluster at ``ray_address`` / ``RAY_ADDRESS``, else a local Ray) or ``auto``
+        (see :func:`~vhgen.pipeline.resources.choose_executor`).
     faults : fault injection for tests (see :class:`FrameWorker`).
-    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files) with
-    the timings: ``ray_init_seconds``, ``first_shard_seconds`` (start to the first shard
-    written), ``tail_seconds`` (last shard to return), ``steady_seconds_per_frame`` (one
-    worker) and ``fixed_seconds`` (wall time minus the frames at the steady rate).
+    Returns a summary dict (frames, shards, seconds, renderer, skipped motion files,
+    ``executor``) with the timings: ``ray_init_seconds`` (0 without Ray),
+    ``first_shard_seconds`` (start to the first shard written), ``tail_seconds`` (last
+    shard to return), ``steady_seconds_per_frame`` (one worker) and ``fixed_seconds``
+    (wall time minus the frames at the steady rate).
     """
     t0 = time.perf_counter()
     out = Path(out)
     check_output(out, resume=resume, overwrite=overwrite)
-    asset_dir = resolve_asset_dir(cfg.assets)  # missing assets: fail before Ray starts
+    asset_dir = resolve_asset_dir(cfg.assets)  # missing assets: fail before any worker
     if resume and (out / "zarr.json").is_file():
         _check_same_config(out, _config_attrs(cfg, LabelScheme.load(cfg.labels)))
     address = ray_address or os.environ.get("RAY_ADDRESS")
-    _ray_env(local=not address)
-    import ray
+    kind = choose_executor(executor, address, cfg)
+    faults = dict(faults or {})
+    marker_dir = out.parent / f".{out.name}.faults"
+    if "die_once" in faults:
+        marker_dir.mkdir(parents=True, exist_ok=True)
+        faults["die_once"] = (str(marker_dir), set(faults["die_once"]))
 
-    pool = ThreadPoolExecutor(1, thread_name_prefix="vhgen-prepare")
-    prepared = pool.submit(_prepare, cfg, max_frames)
-    started = False
-    actors: list = []
+    prep = ThreadPoolExecutor(1, thread_name_prefix="vhgen-prepare")
+    pool: Any = None
+    t_ray = 0.0
     try:
-        started = _ray_init(cfg.num_workers, address)
-        t_ray = time.perf_counter() - t0
-        # Actors are not restarted by Ray: the driver replaces a dead actor itself and
-        # resubmits its shard, so a restart never depends on constructor arguments.
-        opts = actor_options(cfg, ray.cluster_resources() if started else None)
-        actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
-        faults = dict(faults or {})
-        if "die_once" in faults:
-            (out.parent / f".{out.name}.faults").mkdir(parents=True, exist_ok=True)
-            faults["die_once"] = (str(out.parent / f".{out.name}.faults"),
-                                  set(faults["die_once"]))
-        def new_actor(asset_dir: Path):
-            return actor_cls.remote(cfg, str(asset_dir), faults)
+        if kind == "local":
+            from vhgen.pipeline.local import LocalPool
 
-        # actors set up (GL, kernels) while the driver's thread finishes reading poses
-        actors = [new_actor(asset_dir) for _ in range(cfg.num_workers)]
+            # the workers start first: their set-up (interpreter, GL, kernels) is the
+            # longest part and needs only the config
+            pool = LocalPool(cfg, str(asset_dir), faults)
+            pool.start(cfg.num_workers)
+            prepared = prep.submit(_prepare, cfg, max_frames)
+        else:
+            prepared = prep.submit(_prepare, cfg, max_frames)
+            pool = _RayPool.connect(cfg, str(asset_dir), faults, address)
+            t_ray = time.perf_counter() - t0
+            pool.start(cfg.num_workers)
         p = prepared.result()
         plan, poses = p.plan, p.poses
         _open_store(cfg, out, p, resume)
         done = completed_shards(out)
         todo = [t for t in plan.tasks if t.shard not in done]
-        log.info("%d frames in %d shards (%d to do), %d poses from %d motion files",
-                 plan.num_frames, len(plan.tasks), len(todo), poses.num_poses,
-                 len(poses.motion_files))
-        for a in actors[max(1, len(todo)):]:
-            ray.kill(a)
-        actors = actors[:max(1, len(todo))]
+        log.info("%d frames in %d shards (%d to do), %d poses from %d motion files, %s "
+                 "workers", plan.num_frames, len(plan.tasks), len(todo), poses.num_poses,
+                 len(poses.motion_files), kind)
+        pool.stop(list(pool.workers)[max(1, len(todo)):])
         pose_meta = {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
                      "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1}
         plan_arrays = {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
                        "seeds": plan.seeds}
-        refs = [ray.put(x) for x in (poses.rotations, poses.roots, pose_meta, plan_arrays)]
         try:
-            renderers = sorted(set(ray.get([a.load.remote(refs, plan.avatars)
-                                            for a in actors])))
-        except ray.exceptions.RayTaskError as e:
-            if isinstance(getattr(e, "cause", None), VhgenError):
-                raise VhgenError(f"worker set-up: {e.cause}") from None
-            raise
+            renderers = sorted(set(pool.load(poses.rotations, poses.roots, pose_meta,
+                                             plan_arrays, plan.avatars)))
+        except VhgenError as e:
+            raise VhgenError(f"worker set-up: {e}") from None
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
         bar = Progress(sum(t.stop - t.start for t in todo), enabled=progress)
-        results, attempts, first_frame = _dispatch(
-            ray, actors, todo, out, bar, lambda: _loaded(new_actor(asset_dir), refs, plan))
+        merger = ManifestMerger(out)
+        results, attempts, first_frame = _dispatch(pool, todo, out, bar, merger)
         bar.close()
         t_render = time.perf_counter() - t_render
         t_last = time.perf_counter()
-    finally:
-        pool.shutdown(wait=True)
-        for a in actors:
-            ray.kill(a)
-        if started:
-            _shutdown_local_ray(ray)
-    if "die_once" in faults:
-        import shutil
+        n_workers = len(pool.workers)
+        pool.release()  # workers exit while the driver merges
+        if "die_once" in faults:
+            import shutil
 
-        shutil.rmtree(out.parent / f".{out.name}.faults", ignore_errors=True)
-    try:
-        merge_parts(out, plan.num_frames)
-        with open(out / "report.json", "w") as f:
-            json.dump({"motions": poses.report, "renderers": renderers}, f, indent=1)
-    except OSError as e:
-        raise StoreError(_os_error_line(e, out, "cannot write the manifest")) from None
+            shutil.rmtree(marker_dir, ignore_errors=True)
+        try:
+            merger.finish(plan.num_frames)
+            with open(out / "report.json", "w") as f:
+                json.dump({"motions": poses.report, "renderers": renderers}, f, indent=1)
+        except OSError as e:
+            raise StoreError(_os_error_line(e, out, "cannot write the manifest")) from None
+    finally:
+        prep.shutdown(wait=True)
+        if pool is not None:
+            pool.close()
     skipped = [r for r in poses.report if r["status"] != "ok"]
     intr = cfg.sensor.intrinsics
     t_end = time.perf_counter()
     per_frame = _steady_seconds_per_frame(results)
     return {"frames": plan.num_frames, "shards": len(plan.tasks), "written": len(results),
+            "executor": kind,
             "seconds": t_end - t0, "read_seconds": t_ray, "ray_init_seconds": t_ray,
             "render_seconds": t_render, "renderers": renderers, "skipped": skipped,
             "first_shard_seconds": (first_frame or t_end) - t0, "tail_seconds": t_end - t_last,
@@ -352,7 +271,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             # everything that does not grow with the frames: the job's wall time minus the
             # frames at the steady rate of its workers
             "fixed_seconds": t_end - t0 - sum(t.stop - t.start for t in todo) * per_frame
-            / max(1, len(actors)),
+            / max(1, n_workers),
             "store": str(out), "poses": poses.num_poses,
             "retries": sum(attempts.values()) - len(todo),
             # scene objects that found no place after bounded retries (manifest: scene)
@@ -363,16 +282,113 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             if results else 0.0}
 
 
+class _RayPool:
+    """Ray actors behind the interface of :class:`~vhgen.pipeline.local.LocalPool`.
+
+    Actors are not restarted by Ray: the driver replaces a dead actor itself and
+    resubmits its shard, so a restart never depends on constructor arguments."""
+
+    def __init__(self, ray: Any, started: bool, cfg: JobConfig, asset_dir: str,
+                 faults: dict):
+        self.ray = ray
+        self.started = started  # this driver started the (local) Ray
+        opts = actor_options(cfg, ray.cluster_resources() if started else None)
+        self.actor_cls = ray.remote(**opts, max_restarts=0, max_task_retries=0)(FrameWorker)
+        self.args = (cfg, asset_dir, faults)
+        self.workers: dict[int, Any] = {}
+        self.pending: dict[Any, tuple[int, Any]] = {}
+        self._next_id = 0
+        self._load_args: tuple | None = None
+
+    @classmethod
+    def connect(cls, cfg: JobConfig, asset_dir: str, faults: dict,
+                address: str | None) -> _RayPool:
+        _ray_env(local=not address)
+        import ray
+
+        started = _ray_init(cfg.num_workers, address)
+        try:
+            return cls(ray, started, cfg, asset_dir, faults)
+        except BaseException:
+            if started:
+                _shutdown_local_ray(ray)
+            raise
+
+    def start(self, n: int) -> list[int]:
+        return [self._new() for _ in range(n)]
+
+    def _new(self) -> int:
+        wid = self._next_id
+        self._next_id += 1
+        self.workers[wid] = self.actor_cls.remote(*self.args)
+        return wid
+
+    def load(self, rotations: Any, roots: Any, pose_meta: dict, plan_arrays: dict,
+             avatars: list) -> list[str]:
+        ray = self.ray
+        # in the object store once; top-level refs reach every actor as (zero-copy) values
+        refs = [ray.put(x) for x in (rotations, roots, pose_meta, plan_arrays)]
+        self._load_args = (*refs, avatars)
+        try:
+            return ray.get([a.load.remote(*self._load_args) for a in self.workers.values()])
+        except ray.exceptions.RayTaskError as e:
+            if isinstance(getattr(e, "cause", None), VhgenError):
+                raise e.cause from None
+            raise
+
+    def stop(self, wids: list[int]) -> None:
+        for wid in wids:
+            self.ray.kill(self.workers.pop(wid))
+
+    def release(self) -> None:
+        """Let the actors go (the job is done); Ray itself is stopped by close()."""
+        for a in self.workers.values():
+            self.ray.kill(a)
+        self.workers.clear()
+
+    def close(self) -> None:
+        self.release()
+        if self.started:
+            self.started = False
+            _shutdown_local_ray(self.ray)
+
+    def replace(self, wid: int) -> int:
+        self.workers.pop(wid, None)
+        new = self._new()
+        if self._load_args is not None:  # queued before any run() on the same actor
+            self.workers[new].load.remote(*self._load_args)
+        return new
+
+    def submit(self, wid: int, task: Any, *args: Any) -> None:
+        self.pending[self.workers[wid].run.remote(*args)] = (wid, task)
+
+    def wait(self) -> list[tuple[int, Any, str, Any]]:
+        ray = self.ray
+        if not self.pending:
+            return []
+        ready, _ = ray.wait(list(self.pending), num_returns=1)
+        out = []
+        for ref in ready:
+            wid, task = self.pending.pop(ref)
+            try:
+                out.append((wid, task, "ok", ray.get(ref)))
+            except ray.exceptions.RayActorError:
+                # the process died (OOM kill, segfault, node loss)
+                out.append((wid, task, "died", None))
+            except ray.exceptions.RayTaskError as e:
+                cause = getattr(e, "cause", None)
+                # a user-facing cause is answered by the dispatch; anything else is a bug
+                # whose Ray error keeps the worker's traceback
+                out.append((wid, task, "error",
+                            cause if isinstance(cause, (OSError, VhgenError)) else e))
+        return out
+
+
 def _steady_seconds_per_frame(results: list[dict]) -> float:
     """Median seconds per frame of one worker over the shards it ran (render, sensor and
     write; a worker's first shard, which builds its first avatar, counts like the rest)."""
     rates = [r["seconds"] / r["frames"] for r in results if r.get("seconds")]
     return float(np.median(rates)) if rates else 0.0
-
-
-def _loaded(actor, refs: list, plan: Plan):
-    actor.load.remote(refs, plan.avatars)  # queued before any run() on the same actor
-    return actor
 
 
 def _open_store(cfg: JobConfig, out: Path, p: _Prepared, resume: bool) -> None:
@@ -427,34 +443,36 @@ def _short(v: Any) -> str:
     return s if len(s) <= 40 else s[:37] + "..."
 
 
-def _dispatch(ray, actors: list, todo: list, out: Path, bar: Progress, new_actor):
-    """Run every task on the actors (one in flight per actor). On a write failure, stop
-    dispatching, let the tasks in flight finish, then raise one line."""
-    pending: dict = {}
+def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestMerger
+              ) -> tuple[list[dict], dict[int, int], float | None]:
+    """Run every task on the pool's workers (one in flight per worker), handing each
+    finished shard's manifest part to ``merger``. A worker that died is replaced and its
+    shard redone whole. On a write failure, stop dispatching, let the tasks in flight
+    finish, then raise one line."""
     queue = list(todo)
     attempts = {t.shard: 0 for t in todo}
-    results = []
-    idle = list(actors)
+    results: list[dict] = []
+    idle = list(pool.workers)
+    in_flight = 0
     first_frame: float | None = None
     error: VhgenError | None = None
-    while (queue and error is None) or pending:
+    while (queue and error is None) or in_flight:
         while queue and idle and error is None:
-            actor = idle.pop()
+            wid = idle.pop()
             task = queue.pop(0)
             attempts[task.shard] += 1
-            pending[actor.run.remote(str(out), task.shard, task.start, task.stop)] = (actor,
-                                                                                     task)
-        ready, _ = ray.wait(list(pending), num_returns=1)
-        for ref in ready:
-            actor, task = pending.pop(ref)
-            try:
-                results.append(ray.get(ref))
-                idle.append(actor)
+            pool.submit(wid, task, str(out), task.shard, task.start, task.stop)
+            in_flight += 1
+        for wid, task, kind, value in pool.wait():
+            in_flight -= 1
+            if kind == "ok":
+                results.append(value)
+                idle.append(wid)
+                merger.add(task.shard)
                 bar.update(task.stop - task.start)
                 first_frame = first_frame or time.perf_counter()
-            except ray.exceptions.RayActorError:
-                # the process died (OOM kill, segfault, node loss): replace the actor,
-                # redo the whole shard; frames are deterministic, so nothing duplicates
+            elif kind == "died":
+                # frames are deterministic: redoing the whole shard duplicates nothing
                 if attempts[task.shard] > MAX_ATTEMPTS:
                     error = error or VhgenError(
                         f"shard {task.shard} (frames {task.start}-{task.stop}): worker died "
@@ -463,17 +481,16 @@ def _dispatch(ray, actors: list, todo: list, out: Path, bar: Progress, new_actor
                 log.warning("worker died on shard %d (attempt %d), retrying on a new worker",
                             task.shard, attempts[task.shard])
                 queue.insert(0, task)
-                idle.append(new_actor())
-            except ray.exceptions.RayTaskError as e:
-                idle.append(actor)
-                cause = getattr(e, "cause", None)
-                if isinstance(cause, OSError):
+                idle.append(pool.replace(wid))
+            else:
+                idle.append(wid)
+                if isinstance(value, OSError):
                     err: VhgenError = StoreError(_os_error_line(
-                        cause, out, f"cannot write shard {task.shard}"))
-                elif isinstance(cause, VhgenError):
-                    err = VhgenError(f"shard {task.shard}: {cause}")
+                        value, out, f"cannot write shard {task.shard}"))
+                elif isinstance(value, VhgenError):
+                    err = VhgenError(f"shard {task.shard}: {value}")
                 else:
-                    raise  # a bug: keep the worker's traceback
+                    raise value  # a bug: keep the worker's traceback
                 error = error or err
     if error is not None:
         raise error

@@ -52,26 +52,57 @@ def write_part(store: str | Path, shard: int, records: list[FrameRecord],
     return out
 
 
+class ManifestMerger:
+    """Collects the manifest parts of a store as their shards finish, then writes
+    ``manifest.parquet`` (checking every frame appears once). Reading each part when its
+    shard is done spreads the reads over the run instead of the end of the job."""
+
+    def __init__(self, store: str | Path):
+        self.store = Path(store)
+        self.tables: dict[int, object] = {}
+
+    def add(self, shard: int) -> None:
+        """Read shard ``shard``'s part (again, if it was redone). A part that cannot be
+        read now is read (and its error reported) by :meth:`finish`."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        path = self.store / MANIFEST_PARTS / f"part-{shard:06d}.parquet"
+        try:
+            self.tables[shard] = pq.read_table(path)
+        except (OSError, pa.ArrowException):
+            self.tables.pop(shard, None)
+
+    def finish(self, num_frames: int) -> Path:
+        """Read the parts not added yet (shards of an earlier run), concatenate, check,
+        and write ``manifest.parquet`` atomically."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        for p in sorted((self.store / MANIFEST_PARTS).glob("part-*.parquet")):
+            shard = int(p.stem.split("-")[1])
+            if shard not in self.tables:
+                self.tables[shard] = pq.read_table(p)
+        if not self.tables:
+            raise StoreError(f"{self.store}: no manifest parts")
+        table = pa.concat_tables([self.tables[k] for k in sorted(self.tables)]).sort_by(
+            "frame")
+        frames = table.column("frame").to_numpy()
+        if len(frames) != num_frames or not np.array_equal(frames, np.arange(num_frames)):
+            dup = len(frames) - len(np.unique(frames))
+            missing = num_frames - len(np.unique(frames))
+            raise StoreError(f"{self.store}: manifest has {len(frames)} rows for {num_frames} "
+                             f"frames ({dup} duplicated, {missing} missing)")
+        out = self.store / MANIFEST_FILE
+        tmp = out.with_suffix(".tmp")
+        pq.write_table(table, tmp, compression="zstd")
+        os.replace(tmp, out)
+        return out
+
+
 def merge_parts(store: str | Path, num_frames: int) -> Path:
     """Concatenate the parts into ``manifest.parquet``; check every frame appears once."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    parts = sorted((Path(store) / MANIFEST_PARTS).glob("part-*.parquet"))
-    if not parts:
-        raise StoreError(f"{store}: no manifest parts")
-    table = pa.concat_tables([pq.read_table(p) for p in parts]).sort_by("frame")
-    frames = table.column("frame").to_numpy()
-    if len(frames) != num_frames or not np.array_equal(frames, np.arange(num_frames)):
-        dup = len(frames) - len(np.unique(frames))
-        missing = num_frames - len(np.unique(frames))
-        raise StoreError(f"{store}: manifest has {len(frames)} rows for {num_frames} frames "
-                         f"({dup} duplicated, {missing} missing)")
-    out = Path(store) / MANIFEST_FILE
-    tmp = out.with_suffix(".tmp")
-    pq.write_table(table, tmp, compression="zstd")
-    os.replace(tmp, out)
-    return out
+    return ManifestMerger(store).finish(num_frames)
 
 
 def read_manifest(store: str | Path):

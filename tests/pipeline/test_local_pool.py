@@ -1,0 +1,143 @@
+"""The local executor: frame workers in child processes of the driver, without Ray.
+
+Which executor a job gets, what the user sees when a worker fails, that a user's script
+needs no ``if __name__ == "__main__"`` guard, and that no worker outlives its driver."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from vhgen.config import JobConfig
+from vhgen.errors import VhgenError
+from vhgen.pipeline.driver import run_job
+from vhgen.pipeline.local import RemoteTraceback
+from vhgen.pipeline.resources import choose_executor
+
+REPO = Path(__file__).resolve().parents[2]
+
+SCENE = """
+name: pool
+seed: 3
+motions: [builtin:demo]
+poses: {frame_step: 8}
+avatars: {count: 1}
+output: {frames_per_shard: 4}
+render: {backend: osmesa}
+num_workers: 2
+"""
+
+
+@pytest.fixture
+def cfg(tmp_path) -> JobConfig:
+    p = tmp_path / "pool.yaml"
+    p.write_text(SCENE)
+    return JobConfig.load(p)
+
+
+def test_executor_choice(cfg):
+    gpu = replace(cfg, gpus_per_worker=1.0)
+    assert choose_executor("auto", None, cfg) == "local"
+    assert choose_executor("auto", "10.0.0.1:6379", cfg) == "ray"
+    assert choose_executor("ray", None, cfg) == "ray"
+    assert choose_executor("local", None, cfg) == "local"
+    with pytest.raises(VhgenError, match="cannot use the Ray cluster at 10.0.0.1:6379"):
+        choose_executor("local", "10.0.0.1:6379", cfg)
+    with pytest.raises(VhgenError, match="--executor: 'threads' is not one of"):
+        choose_executor("threads", None, cfg)
+    assert choose_executor("auto", None, gpu) == "ray"  # Ray assigns the GPUs
+    with pytest.raises(VhgenError, match="render.gpus_per_worker needs --executor ray"):
+        choose_executor("local", None, gpu)
+
+
+def test_worker_bug_keeps_its_traceback(cfg, tmp_path):
+    """An internal error in a worker reaches the driver as the same exception type, with
+    the worker's traceback attached (a bug must stay debuggable)."""
+    with pytest.raises(RuntimeError, match="injected bug on shard 1") as info:
+        run_job(cfg, tmp_path / "bug.zarr", max_frames=8, faults={"crash": {1}},
+                executor="local")
+    cause = info.value.__cause__
+    assert isinstance(cause, RemoteTraceback)
+    assert "worker.py" in cause.text and "in run" in cause.text
+
+
+def test_setup_error_is_one_line(cfg, tmp_path):
+    with pytest.raises(VhgenError) as info:
+        run_job(cfg, tmp_path / "s.zarr", max_frames=4, executor="local",
+                faults={"setup_error": "no EGL device (test)"})
+    assert str(info.value) == "worker set-up: no EGL device (test)"
+
+
+def test_script_without_main_guard(cfg, tmp_path):
+    """A plain script calling run_job at top level works: the workers do not re-run the
+    caller's main module (multiprocessing's spawn would, and fail)."""
+    script = tmp_path / "plain.py"
+    script.write_text(
+        "from vhgen.config import JobConfig\n"
+        "from vhgen.pipeline.driver import run_job\n"
+        f"s = run_job(JobConfig.load({str(tmp_path / 'pool.yaml')!r}), "
+        f"{str(tmp_path / 'plain.zarr')!r}, max_frames=8)\n"
+        "print('frames', s['frames'], s['executor'])\n")
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                       cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "frames 8 local" in r.stdout
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for p in Path("/proc").iterdir():
+        if p.name.isdigit():
+            try:
+                stat = (p / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(p.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = (Path("/proc") / str(pid) / "stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def test_workers_do_not_outlive_a_killed_driver(tmp_path):
+    """SIGKILL the driver mid-job: its workers see their socket close and exit."""
+    (tmp_path / "long.yaml").write_text(SCENE.replace("frame_step: 8", "frame_step: 1"))
+    log = tmp_path / "driver.log"
+    with open(log, "w") as err:
+        driver = subprocess.Popen(
+            [sys.executable, "-c", "import sys; from vhgen.cli import main; sys.exit(main())",
+             "-q", "generate", str(tmp_path / "long.yaml"), "--out",
+             str(tmp_path / "long.zarr")], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=err)
+    try:
+        parts = tmp_path / "long.zarr" / "manifest"
+        workers: list[int] = []
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and driver.poll() is None:
+            workers = _children(driver.pid)
+            if len(workers) == 2 and parts.is_dir() and any(parts.glob("part-*.parquet")):
+                break  # mid-job: both workers up, a shard written
+            time.sleep(0.1)
+        assert driver.poll() is None, f"driver ended early: {log.read_text()[-2000:]}"
+        assert len(workers) == 2, f"expected 2 workers, found {workers}"
+        os.kill(driver.pid, signal.SIGKILL)
+        driver.wait(10)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and any(_alive(w) for w in workers):
+            time.sleep(0.2)
+        assert not any(_alive(w) for w in workers), "a worker outlived its driver"
+    finally:
+        if driver.poll() is None:
+            driver.kill()

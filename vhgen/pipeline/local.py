@@ -1,0 +1,267 @@
+"""The local pool: frame workers in processes of this machine, without Ray.
+
+A local Ray costs 3-6 s to start and about 1 s to stop on a small machine
+(``../shared/design/platform-notes.md``), more than a whole small job. For a job on one
+machine the driver therefore runs its :class:`~vhgen.pipeline.worker.FrameWorker` s in
+plain child processes, one socket pair each. The contract is the Ray path's: workers set
+up while the driver plans, every shard is written by its worker, a worker that dies is
+replaced and its shard redone whole, so no frame is lost or duplicated.
+
+A child is a fresh interpreter started with ``python -c`` on the driver's ``sys.path``,
+not a ``multiprocessing`` spawn: spawn re-runs the caller's main script in every child,
+which breaks any user script without an ``if __name__ == "__main__"`` guard; a fork
+would inherit the driver's threads and GL state. A child whose driver disappears reads
+end-of-file on its socket and exits.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import pickle
+import socket
+import subprocess
+import sys
+import traceback
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+from vhgen.config import JobConfig
+from vhgen.errors import RenderError
+
+log = logging.getLogger(__name__)
+
+_STOP_SECONDS = 5.0  # a worker told to stop that is still alive after this is terminated
+
+
+class RemoteTraceback(Exception):
+    """The traceback of an exception raised in a worker (set as its ``__cause__``)."""
+
+    def __init__(self, text: str):
+        super().__init__(text)
+        self.text = text
+
+    def __str__(self) -> str:
+        return f"\n\"\"\"\n{self.text}\"\"\""
+
+
+_CHILD = ("import json, sys; sys.path[:] = json.loads(sys.argv[2]); "
+          "from vhgen.pipeline.local import serve; serve(int(sys.argv[1]))")
+
+
+def serve(fd: int) -> None:
+    """A worker process (its entry point): read the config from the socket ``fd``, set
+    up, then answer ``(method, args)`` messages until told to stop or the driver's end of
+    the socket closes."""
+    from vhgen.pipeline.worker import FrameWorker
+
+    conn = Connection(fd)
+    try:
+        _, (cfg, asset_dir, faults) = conn.recv()
+    except (EOFError, OSError):
+        return
+    worker = FrameWorker(cfg, asset_dir, faults)
+    while True:
+        try:
+            op, args = conn.recv()
+        except (EOFError, OSError):
+            return  # the driver is gone
+        if op == "stop":
+            # every shard is written and renamed in place: end now, as a multiprocessing
+            # child does, without the seconds' tenth of GL and interpreter teardown
+            conn.close()
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(0)
+        try:
+            reply: tuple[str, Any] = ("ok", getattr(worker, op)(*args))
+        except Exception as e:  # sent back whole: the driver decides what the user sees
+            text = traceback.format_exc()
+            try:
+                pickle.dumps(e)
+            except Exception:
+                e = RuntimeError(f"{type(e).__name__}: {e}")
+            reply = ("error", (e, text))
+        try:
+            conn.send(reply)
+        except OSError:
+            return  # the driver is gone (killed): nobody to answer
+
+
+@dataclass
+class _Worker:
+    process: subprocess.Popen
+    conn: Connection
+    busy: Any = None  # the task in flight
+    stopping: bool = False  # told to stop
+
+
+class WorkerDied(RenderError):
+    """A worker process ended during its set-up (a GL driver crash, an OOM kill)."""
+
+
+class LocalPool:
+    """Frame workers in child processes. ``start`` spawns them (set-up begins at once),
+    ``load`` hands every worker the poses and the plan, ``submit``/``wait`` run shards."""
+
+    def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
+        self.cfg = cfg
+        self.asset_dir = asset_dir
+        self.faults = faults
+        self.workers: dict[int, _Worker] = {}
+        self._next_id = 0
+        self._load_args: tuple | None = None
+
+    # -- life cycle ------------------------------------------------------------------
+    def start(self, n: int) -> list[int]:
+        """Spawn ``n`` workers; returns their ids. Does not wait for their set-up."""
+        return [self._spawn() for _ in range(n)]
+
+    def _spawn(self) -> int:
+        a, b = socket.socketpair()
+        ours = Connection(a.detach())
+        p = subprocess.Popen([sys.executable, "-c", _CHILD, str(b.fileno()),
+                              json.dumps(sys.path)], pass_fds=(b.fileno(),),
+                             stdin=subprocess.DEVNULL, env=_worker_env())
+        b.close()  # the child's end only: its death then reads as end-of-file here
+        wid = self._next_id
+        self._next_id += 1
+        self.workers[wid] = w = _Worker(p, ours)
+        self._send(w, "config", (self.cfg, self.asset_dir, self.faults))
+        return wid
+
+    def pids(self) -> list[int]:
+        return [w.process.pid for w in self.workers.values()]
+
+    def load(self, *args: Any) -> list[str]:
+        """Send the poses and the plan to every worker and wait for all of them; returns
+        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here."""
+        self._load_args = args
+        for w in self.workers.values():
+            self._send(w, "load", args)
+        return [self._take_load(wid) for wid in list(self.workers)]
+
+    def _take_load(self, wid: int) -> str:
+        w = self.workers[wid]
+        kind, value = self._recv(wid)
+        if kind == "died":
+            raise WorkerDied(f"worker {wid} (pid {w.process.pid}) died during set-up "
+                             f"(exit code {value})")
+        if kind == "error":
+            raise _with_remote(value)
+        return str(value)
+
+    def stop(self, wids: list[int]) -> None:
+        """Stop these workers (e.g. more workers than tasks)."""
+        for wid in wids:
+            w = self.workers.pop(wid)
+            try:
+                w.conn.send(("stop", ()))
+            except OSError:
+                pass
+            _end(w.process, _STOP_SECONDS)
+            w.conn.close()
+
+    def release(self) -> None:
+        """Tell every idle worker to stop, without waiting (close() reaps them)."""
+        for w in self.workers.values():
+            if w.busy is None and not w.stopping:
+                w.stopping = True
+                self._send(w, "stop", ())
+
+    def close(self) -> None:
+        """Stop every worker; the ones that do not stop in time are terminated."""
+        self.release()
+        for w in self.workers.values():
+            # a worker still busy (an error stopped the job) is not waited for
+            _end(w.process, _STOP_SECONDS if w.busy is None else 0.0)
+            w.conn.close()
+        self.workers.clear()
+
+    def replace(self, wid: int) -> int:
+        """A new, loaded worker in place of the dead one ``wid``; returns its id."""
+        old = self.workers.pop(wid)
+        old.conn.close()
+        _end(old.process, 1.0)
+        new = self._spawn()
+        if self._load_args is not None:
+            self._send(self.workers[new], "load", self._load_args)
+            self._take_load(new)
+        return new
+
+    # -- tasks -----------------------------------------------------------------------
+    def submit(self, wid: int, task: Any, *args: Any) -> None:
+        """Run ``worker.run(*args)`` on worker ``wid``; ``task`` is returned by wait()."""
+        w = self.workers[wid]
+        w.busy = task
+        self._send(w, "run", args)
+
+    def wait(self) -> list[tuple[int, Any, str, Any]]:
+        """Block until at least one busy worker answers or dies. Returns
+        ``(worker id, task, kind, value)`` with kind ``ok`` (value: the result),
+        ``died`` (value: the exit code) or ``error`` (value: the exception, its
+        ``__cause__`` the worker's traceback)."""
+        busy = {wid: w for wid, w in self.workers.items() if w.busy is not None}
+        if not busy:
+            return []
+        # a dead worker's socket reads as end-of-file: readable, like a reply
+        handles = {w.conn: wid for wid, w in busy.items()}
+        ready = {handles[h] for h in wait(list(handles))}  # type: ignore[index]
+        out = []
+        for wid in sorted(ready):
+            w = self.workers[wid]
+            kind, value = self._recv(wid)
+            task, w.busy = w.busy, None
+            out.append((wid, task, kind,
+                        _with_remote(value) if kind == "error" else value))
+        return out
+
+    # -- pipe ------------------------------------------------------------------------
+    def _send(self, w: _Worker, op: str, args: tuple) -> None:
+        try:
+            w.conn.send((op, args))
+        except OSError:
+            pass  # the worker is dead: its socket reads as end-of-file in wait()
+
+    def _recv(self, wid: int) -> tuple[str, Any]:
+        """The worker's next reply, or ``("died", exit code)``; a reply sent just before
+        the process ended is still read."""
+        w = self.workers[wid]
+        try:
+            return w.conn.recv()
+        except (EOFError, OSError):
+            _end(w.process, 1.0)
+            return "died", w.process.returncode
+
+
+def _worker_env() -> dict[str, str]:
+    """The driver's environment, with one thread per worker for the math libraries (the
+    workers are the parallelism; what Ray sets for a one-CPU actor) unless the user chose."""
+    env = dict(os.environ)
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+              "NUMBA_NUM_THREADS", "LP_NUM_THREADS"):
+        env.setdefault(k, "1")
+    return env
+
+
+def _end(p: subprocess.Popen, seconds: float) -> None:
+    """Wait up to ``seconds`` for a worker to exit, then terminate (and reap) it."""
+    try:
+        p.wait(seconds)
+        return
+    except subprocess.TimeoutExpired:
+        pass
+    p.terminate()
+    try:
+        p.wait(_STOP_SECONDS)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+
+
+def _with_remote(value: tuple[BaseException, str]) -> BaseException:
+    exc, text = value
+    exc.__cause__ = RemoteTraceback(text)
+    return exc
