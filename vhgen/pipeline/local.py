@@ -55,8 +55,13 @@ def serve(fd: int) -> None:
     """A worker process (its entry point): read the config from the socket ``fd``, set
     up, then answer ``(method, args)`` messages until told to stop or the driver's end of
     the socket closes."""
+    import signal
+
     from vhgen.pipeline.worker import FrameWorker
 
+    # Ctrl-C on a terminal reaches the whole process group: the driver handles it and
+    # stops the workers; a worker printing its own KeyboardInterrupt would only be noise
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(fd)
     try:
         _, (cfg, asset_dir, faults) = conn.recv()
