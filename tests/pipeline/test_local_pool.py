@@ -20,6 +20,7 @@ from vhgen.errors import VhgenError
 from vhgen.pipeline.driver import run_job
 from vhgen.pipeline.local import RemoteTraceback
 from vhgen.pipeline.resources import choose_executor
+from vhgen.store.inspect import inspect_store
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -141,3 +142,37 @@ def test_workers_do_not_outlive_a_killed_driver(tmp_path):
     finally:
         if driver.poll() is None:
             driver.kill()
+
+
+def test_ctrl_c_is_one_line_and_stops_the_workers(tmp_path):
+    """SIGINT to the job's process group (Ctrl-C on a terminal): the driver answers in
+    one line with exit code 130, no worker prints a traceback, no worker is left, and
+    --resume finishes the store."""
+    (tmp_path / "long.yaml").write_text(SCENE.replace("frame_step: 8", "frame_step: 1"))
+    cmd = [sys.executable, "-c", "import sys; from vhgen.cli import main; sys.exit(main())",
+           "-q", "generate", str(tmp_path / "long.yaml"), "--out", str(tmp_path / "i.zarr")]
+    driver = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, start_new_session=True,
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    parts = tmp_path / "i.zarr" / "manifest"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and driver.poll() is None and not (
+            parts.is_dir() and any(parts.glob("part-*.parquet"))):
+        time.sleep(0.1)
+    workers = _children(driver.pid)
+    assert driver.poll() is None and len(workers) == 2
+    os.killpg(driver.pid, signal.SIGINT)
+    _, err = driver.communicate(timeout=60)
+    assert driver.returncode == 130
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.strip().splitlines() == [
+        "vhgen: interrupted (finished shards are kept: rerun with --resume)"]
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.1)
+    assert not any(_alive(w) for w in workers)
+    r = subprocess.run([*cmd, "--resume"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    rep = inspect_store(tmp_path / "i.zarr")
+    assert rep.ok, rep.defects
