@@ -456,19 +456,25 @@ def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestM
     in_flight = 0
     first_frame: float | None = None
     error: VhgenError | None = None
-    while (queue and error is None) or in_flight:
+
+    def fill() -> None:  # one task to every idle worker
+        nonlocal in_flight
         while queue and idle and error is None:
             wid = idle.pop()
             task = queue.pop(0)
             attempts[task.shard] += 1
             pool.submit(wid, task, str(out), task.shard, task.start, task.stop)
             in_flight += 1
+
+    fill()
+    while in_flight:
+        finished = []
         for wid, task, kind, value in pool.wait():
             in_flight -= 1
             if kind == "ok":
                 results.append(value)
                 idle.append(wid)
-                merger.add(task.shard)
+                finished.append(task.shard)
                 bar.update(task.stop - task.start)
                 first_frame = first_frame or time.perf_counter()
             elif kind == "died":
@@ -492,6 +498,9 @@ def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestM
                 else:
                     raise value  # a bug: keep the worker's traceback
                 error = error or err
+        fill()  # the workers first, then the driver's own reading
+        for shard in finished:
+            merger.add(shard)
     if error is not None:
         raise error
     return results, attempts, first_frame
