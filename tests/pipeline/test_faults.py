@@ -66,11 +66,13 @@ def tmpfs(tmp_path):
     subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
-def test_injected_disk_full_then_resume(tmp_path):
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_injected_disk_full_then_resume(tmp_path, executor):
     cfg = _cfg(tmp_path)
     store = tmp_path / "inj.zarr"
     with pytest.raises(StoreError) as ei:
-        run_job(cfg, store, max_frames=16, faults={"write_error": (errno.ENOSPC, {1})})
+        run_job(cfg, store, max_frames=16, faults={"write_error": (errno.ENOSPC, {1})},
+                executor=executor)
     msg = str(ei.value)
     assert "\n" not in msg and "shard 1" in msg and "No space left on device" in msg
     assert "ENOSPC" in msg and "--resume" in msg
@@ -142,12 +144,13 @@ def test_store_from_another_config(tmp_path, capsys):
     assert (tmp_path / "mine" / "thesis.tex").exists()
 
 
-def test_worker_setup_failure_is_one_line(tmp_path, capsys):
-    """A worker that cannot set up (no GL backend, ...) gives its error, not Ray's trace."""
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_worker_setup_failure_is_one_line(tmp_path, capsys, executor):
+    """A worker that cannot set up (no GL backend, ...) gives its error, not a trace."""
     from vhgen.errors import VhgenError
 
     with pytest.raises(VhgenError) as ei:
-        run_job(_cfg(tmp_path), tmp_path / "s.zarr", max_frames=4,
+        run_job(_cfg(tmp_path), tmp_path / "s.zarr", max_frames=4, executor=executor,
                 faults={"setup_error": "cannot create an egl OpenGL context: no device"})
     msg = str(ei.value)
     assert "\n" not in msg and "cannot create an egl OpenGL context" in msg

@@ -69,13 +69,6 @@ def test_worker_bug_keeps_its_traceback(cfg, tmp_path):
     assert "worker.py" in cause.text and "in run" in cause.text
 
 
-def test_setup_error_is_one_line(cfg, tmp_path):
-    with pytest.raises(VhgenError) as info:
-        run_job(cfg, tmp_path / "s.zarr", max_frames=4, executor="local",
-                faults={"setup_error": "no EGL device (test)"})
-    assert str(info.value) == "worker set-up: no EGL device (test)"
-
-
 def test_script_without_main_guard(cfg, tmp_path):
     """A plain script calling run_job at top level works: the workers do not re-run the
     caller's main module (multiprocessing's spawn would, and fail)."""
