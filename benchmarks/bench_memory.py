@@ -122,7 +122,8 @@ def main() -> None:
         total = cfg.avatars.count * poses.num_poses
         out = Path(args.out) if args.out else Path(tmp) / "memory.zarr"
         print(f"{total} frames: {poses.num_poses} poses x {cfg.avatars.count} avatars, "
-              f"{args.workers} {args.executor} workers, sensor {args.sensor}, backend {args.backend}")
+              f"{args.workers} {args.executor} workers, sensor {args.sensor}, "
+              f"backend {args.backend}")
 
         samples: list[tuple[int, float, dict[int, float]]] = []
         done = threading.Event()
