@@ -7,9 +7,10 @@ import pytest
 
 from tests.forest.conftest import two_boxes
 from tests.forest.test_features import reference_feature
+from vhgen.errors import ForestError
 from vhgen.forest.features import BACKGROUND_MM, draw_offsets, prepare_depth
 from vhgen.forest.kernel import pack_forest, probe_indices
-from vhgen.forest.model import Forest, Predictor
+from vhgen.forest.model import Forest, Predictor, truncate
 from vhgen.forest.train import ImageShard, LocalPool, TrainParams, grow_forest
 
 
@@ -149,7 +150,9 @@ def test_trained_forest_with_early_leaves_and_a_stump():
                    np.zeros(1, np.int16), np.array([[0, 5, 1, 9]]), np.zeros(1, np.int64))
     test, _ = two_boxes(4, seed=60)
     test[:, :, :3] = 2000  # body on the left border
-    for f in (forest, _concat(forest, stump)):
+    cut = truncate(forest, 4)  # deeper nodes stay in the arrays, unreachable
+    assert Predictor(cut)._packed.levels.tolist() == [4, 4, 4]
+    for f in (forest, _concat(forest, stump), cut):
         pred = Predictor(f)
         for frame in test:
             np.testing.assert_array_equal(pred.predict(frame), reference_predict(f, frame))
@@ -183,8 +186,11 @@ def test_vote_ties_go_to_the_lowest_class():
 def test_packed_layout():
     rng = np.random.default_rng(2)
     f = random_complete_forest(rng, 2, 3, 5, 100)
-    pf = pack_forest(f.offsets, f.thresh, f.left, f.depth, f.counts, f.roots)
+    pf = pack_forest(f.offsets, f.thresh, f.left, f.counts, f.roots)
     assert pf.levels.tolist() == [3, 3] and pf.prob.shape == (16, 8)
+    cyclic = np.where(f.left == 3, 0, f.left)  # node 1's children are the root and node 4
+    with pytest.raises(ValueError, match="cycle"):
+        pack_forest(f.offsets, f.thresh, cyclic, f.counts, f.roots)
     assert (pf.prob[:, 5:] == -1).all()
     np.testing.assert_array_equal(pf.prob[:, :5], f.probabilities()[f.left < 0])
     nodes = pf.nodes.reshape(-1, 2)
@@ -196,5 +202,5 @@ def test_packed_layout():
 
 def test_huge_image_is_a_clear_error():
     f = random_complete_forest(np.random.default_rng(0), 1, 2, 3, 10)
-    with pytest.raises(ValueError, match="32767"):
+    with pytest.raises(ForestError, match="32767"):
         Predictor(f).predict(np.zeros((2, 40000), np.uint16))

@@ -137,7 +137,7 @@ class PackedForest:
 
     nodes : (2N,) int64 packed nodes in the forest's node order: node i is
         ``nodes[2i]`` (offsets) and ``nodes[2i + 1]`` (threshold or leaf row | next << 32).
-    roots, levels : (T,) int64 root node and number of levels (maximum leaf depth) per tree.
+    roots, levels : (T,) int64 root node and number of levels (longest path) per tree.
     prob : (L, C8) float32 normalised class histogram of each leaf; C8 = C rounded up to a
         multiple of 8, the padding columns -1.
     num_classes : C.
@@ -150,30 +150,47 @@ class PackedForest:
     num_classes: int
 
 
-def pack_forest(offsets: np.ndarray, thresh: np.ndarray, left: np.ndarray, depth: np.ndarray,
-                counts: np.ndarray, roots: np.ndarray) -> PackedForest:
+def tree_levels(left: np.ndarray, root: int) -> int:
+    """Length of the longest path from ``root`` to a leaf it reaches (left: (N,) children,
+    -1 = leaf). Walked, not read from ``depth``: a truncated forest keeps deeper nodes
+    that no pixel reaches."""
+    frontier = np.array([root], np.int64)
+    level = seen = 0
+    while True:
+        inner = frontier[left[frontier] >= 0]
+        if len(inner) == 0:
+            return level
+        seen += len(inner)
+        if seen > len(left):  # a tree visits each split node once
+            raise ValueError("the forest's child links are not a tree (a cycle)")
+        frontier = np.concatenate([left[inner], left[inner] + 1])
+        level += 1
+
+
+def pack_forest(offsets: np.ndarray, thresh: np.ndarray, left: np.ndarray, counts: np.ndarray,
+                roots: np.ndarray) -> PackedForest:
     """Pack the arrays of a :class:`vhgen.forest.model.Forest` (same meanings and dtypes)."""
+    left = np.asarray(left, np.int64)
     n = len(left)
-    leaf = np.asarray(left) < 0
+    leaf = left < 0
     leaves = np.flatnonzero(leaf)
     off = np.ascontiguousarray(offsets, dtype=np.int16).copy()
     off[leaf] = 0
     low = np.asarray(thresh, np.int64).copy()
     low[leaves] = np.arange(len(leaves))
-    nxt = np.where(leaf, np.arange(n), np.asarray(left, np.int64))
+    nxt = np.where(leaf, np.arange(n), left)
     nodes = np.empty((n, 2), np.int64)
     nodes[:, 0] = off.view(np.int64).ravel()  # little endian: du1 in the low 16 bits
     nodes[:, 1] = (low & 0xFFFFFFFF) | (nxt << 32)
     roots = np.ascontiguousarray(roots, dtype=np.int64)
-    ends = list(roots[1:]) + [n]
-    levels = np.array([int(np.asarray(depth)[r:e].max()) - int(depth[r])
-                       for r, e in zip(roots, ends, strict=True)], np.int64)
+    levels = np.array([tree_levels(left, int(r)) for r in roots], np.int64)
     c = counts.shape[1]
-    lc = counts[leaves]
-    # the same float32 arithmetic as Forest.probabilities(), on the leaves only
-    tot = np.maximum(lc.sum(axis=1, keepdims=True), 1).astype(np.float32)
     prob = np.full((len(leaves), -(-c // 8) * 8), -1.0, np.float32)
-    prob[:, :c] = lc.astype(np.float32) / tot
+    for a in range(0, len(leaves), 1 << 16):  # in chunks: PCL trees have 2^20 leaves
+        lc = counts[leaves[a:a + (1 << 16)]]
+        # the same float32 arithmetic as Forest.probabilities(), on the leaves only
+        tot = np.maximum(lc.sum(axis=1, keepdims=True), 1).astype(np.float32)
+        prob[a:a + len(lc), :c] = lc.astype(np.float32) / tot
     return PackedForest(nodes=nodes.ravel(), roots=roots, levels=levels, prob=prob, num_classes=c)
 
 

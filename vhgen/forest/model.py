@@ -126,24 +126,22 @@ class Predictor:
 
     def __init__(self, forest: Forest):
         self.forest = forest
-        self._offsets = np.ascontiguousarray(forest.offsets, dtype=np.int64)
-        self._thresh = np.ascontiguousarray(forest.thresh, dtype=np.int32)
-        self._left = np.ascontiguousarray(forest.left, dtype=np.int64)
-        self._roots = np.ascontiguousarray(forest.roots, dtype=np.int64)
-        self._packed = pack_forest(forest.offsets, forest.thresh, forest.left, forest.depth,
-                                   forest.counts, forest.roots)
+        self._sparse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # tree_labels
+        self._packed = pack_forest(forest.offsets, forest.thresh, forest.left, forest.counts,
+                                   forest.roots)
 
     def predict(self, depth: np.ndarray, prepared: bool = False) -> np.ndarray:
         """Labels of one frame (H, W) or a batch (N, H, W) of uint16 mm depth -> uint8.
 
         0 = background: no measurement, or the forest says background. A single frame runs
-        serially (one core); a batch runs frames in parallel over numba threads.
+        serially (one core); a batch runs frames in parallel over numba threads. The kernel
+        is :mod:`vhgen.forest.kernel`; sides up to 32767 px (else ForestError).
         """
         d = np.ascontiguousarray(depth, dtype=np.uint16) if prepared else prepare_depth(depth)
         if d.ndim not in (2, 3):
             raise ValueError(f"depth must be (H, W) or (N, H, W), got {d.shape}")
         if max(d.shape[-2:]) > MAX_SIDE:
-            raise ValueError(f"depth images up to {MAX_SIDE} px a side, got {d.shape}")
+            raise ForestError(f"depth images up to {MAX_SIDE} px a side, got {d.shape}")
         out = np.empty(d.shape, dtype=np.uint8)
         pf = self._packed
         kernel = predict_frame if d.ndim == 2 else predict_batch
@@ -153,10 +151,15 @@ class Predictor:
     def tree_labels(self, depth: np.ndarray, tree: int) -> np.ndarray:
         """(H, W) uint8: what tree ``tree`` alone outputs (argmax of its leaf), 0 where
         there is no measurement; the per-tree labelling PCL computes before its vote."""
+        if self._sparse is None:  # built on first use: most predictors never need it
+            f = self.forest
+            self._sparse = (np.ascontiguousarray(f.offsets, dtype=np.int64),
+                            np.ascontiguousarray(f.thresh, dtype=np.int32),
+                            np.ascontiguousarray(f.left, dtype=np.int64))
         d = prepare_depth(depth)
         out = np.empty(d.shape, dtype=np.uint8)
-        _tree_labels(d, self._offsets, self._thresh, self._left, int(self._roots[tree]),
-                     self.forest.leaf_labels(), out)
+        _tree_labels(d, *self._sparse, int(self.forest.roots[tree]), self.forest.leaf_labels(),
+                     out)
         return out
 
 
