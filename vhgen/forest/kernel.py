@@ -3,8 +3,9 @@
 Every pixel walks every tree with exactly the arithmetic of
 :func:`vhgen.forest.features.feature_at` (PCL ``runThroughTree``: the probe position
 ``x + du * (1000 / d)`` in float64, cast to float32, truncated, clamped into the image),
-then the trees' leaf distributions are averaged and the argmax taken (ties to the lowest
-class). The labels are identical to the slow reference; only the bookkeeping is fast:
+then the trees' normalised leaf histograms are summed in float32, tree after tree (the
+argmax of the average), and the argmax taken (ties to the lowest class). The labels are
+identical to the slow reference; only the bookkeeping is fast:
 
 * **Packed nodes**, 16 bytes, four per cache line: the four int16 offsets in one int64
   word, the threshold (low 32 bits) and the left child (high 32 bits) in the other.

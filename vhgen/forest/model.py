@@ -1,4 +1,5 @@
-"""The forest as arrays, its file format (.npz + JSON metadata) and the inference kernel.
+"""The forest as arrays, its file format (.npz + JSON metadata) and the Predictor (its
+compiled kernel is :mod:`vhgen.forest.kernel`).
 
 A tree is stored sparse, breadth first: node ``i`` has a feature ``offsets[i]`` (du1, dv1,
 du2, dv2 int16 pixel-metres), a threshold ``thresh[i]`` (int32 millimetres, within int16
