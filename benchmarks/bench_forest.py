@@ -9,7 +9,13 @@ millimetres. Forests:
 * ``complete d20``: 3 trees of depth 20 with every path 20 nodes long (random features and
   thresholds, 2^20 leaves per tree): the worst case of Shotton's 3 x 20 setting, and the
   shape of PCL's shipped trees (complete, padded);
-* ``--forest FILE``: any trained forest, with its mean path length on this frame.
+* ``--forest FILE``: any trained forest, with its mean path length on this frame. The
+  README's numbers use a 3 x depth-20 forest trained on 600 generated frames (Shotton's
+  depth and tree count, the forest study's sampling; about 2 minutes on 2 cores)::
+
+      vhgen generate configs/forest/train.yaml --max-frames 600 --out out/bench_train.zarr
+      vhgen forest train out/bench_train.zarr --out out/bench_forest.npz \
+          --pixels-per-image 300 --features 300 --thresholds 25 --min-samples 16 --seed 1
 
 The single-frame kernel is serial; the table shows the median wall time over ``--repeats``
 runs, its 90th percentile, and the median CPU time of the thread (what the frame costs on
@@ -93,7 +99,7 @@ def main() -> None:
     import numba
 
     print(f"frame 640x480, {body} body pixels; numba threads {numba.get_num_threads()}")
-    print(f"{'forest':<22} {'trees':>5} {'max depth':>9} {'path':>6} {'ms/frame':>9} "
+    print(f"{'forest':<22} {'trees':>5} {'nodes':>8} {'max depth':>9} {'path':>6} {'ms/frame':>9} "
           f"{'p90 ms':>7} {'cpu ms':>7} {'frames/s':>9} {'cpu f/s':>8}")
     for name, forest in forests:
         pred = Predictor(forest)
@@ -106,7 +112,8 @@ def main() -> None:
             cpu.append(time.thread_time() - c0)
         med, p90 = np.median(times) * 1e3, np.percentile(times, 90) * 1e3
         cmed = np.median(cpu) * 1e3
-        print(f"{name:<22} {forest.num_trees:>5d} {int(forest.depth.max()):>9d} "
+        print(f"{name:<22} {forest.num_trees:>5d} {len(forest.left):>8d} "
+              f"{int(forest.depth.max()):>9d} "
               f"{mean_path(forest, depth):>6.1f} {med:>9.2f} {p90:>7.2f} {cmed:>7.2f} "
               f"{1e3 / med:>9.1f} {1e3 / cmed:>8.1f}")
 

@@ -93,6 +93,10 @@ def test_cli_errors(tmp_path, capsys, boxes_store):
     Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(rgb)
     one_line_error(capsys, "forest", "label", out, str(rgb), "-o", str(tmp_path / "x.png"),
                    match="16-bit depth PNG")
+    wide = tmp_path / "wide.png"
+    Image.fromarray(np.full((2, 40000), 1500, np.uint16)).save(wide)
+    one_line_error(capsys, "forest", "label", out, str(wide), "-o", str(tmp_path / "x.png"),
+                   match="wide.png: 40000x2 px")
     s31 = tmp_path / "s31.npz"
     f = Forest.load(out)
     f.meta.update({"label_scheme": "shotton31", "label_names": ["x"] * 31})

@@ -118,6 +118,11 @@ def read_depth_png(path: str) -> Any:
     if arr.ndim != 2 or mode not in ("I;16", "I;16B", "I;16L", "I"):
         raise ForestError(f"{p}: expected a single-channel 16-bit depth PNG in millimetres, "
                           f"got mode {mode} shape {arr.shape}")
+    from vhgen.forest.kernel import MAX_SIDE
+
+    if max(arr.shape) > MAX_SIDE:
+        raise ForestError(f"{p}: {arr.shape[1]}x{arr.shape[0]} px; forest inference takes "
+                          f"images up to {MAX_SIDE} px a side")
     if arr.min(initial=0) < 0 or arr.max(initial=0) > 65535:
         raise ForestError(f"{p}: depth values outside 0..65535 mm")
     return arr.astype(np.uint16)

@@ -1,4 +1,5 @@
-"""The forest as arrays, its file format (.npz + JSON metadata) and the inference kernel.
+"""The forest as arrays, its file format (.npz + JSON metadata) and the Predictor (its
+compiled kernel is :mod:`vhgen.forest.kernel`).
 
 A tree is stored sparse, breadth first: node ``i`` has a feature ``offsets[i]`` (du1, dv1,
 du2, dv2 int16 pixel-metres), a threshold ``thresh[i]`` (int32 millimetres, within int16
@@ -20,6 +21,7 @@ import numpy as np
 
 from vhgen.errors import ForestError
 from vhgen.forest.features import BACKGROUND_MM, FOCAL_SCALE, prepare_depth
+from vhgen.forest.kernel import MAX_SIDE, pack_forest, predict_batch, predict_frame
 
 FORMAT = "vhgen-forest"
 FORMAT_VERSION = 1
@@ -107,97 +109,6 @@ def _walk(img, x, y, scale, offsets, thresh, left, node):
     return node
 
 
-_BLOCK = 32  # pixels walked in lockstep: their dependency chains overlap in the CPU
-
-
-@numba.njit(inline="always")
-def _lo16(v):
-    return ((v & 0xFFFF) ^ 0x8000) - 0x8000  # the low int16 of an int32, sign-extended
-
-
-@numba.njit(inline="always")
-def _hi16(v):
-    return v >> 16  # arithmetic shift: the high int16, sign-extended
-
-
-@numba.njit(cache=True)
-def _predict_frame(img, nodes, roots, prob, out):
-    """nodes: (N, 4) int32 rows (du1 | dv1 << 16, du2 | dv2 << 16, thresh, left): 16 bytes,
-    four nodes per cache line. One tree at a time over all pixels (its nodes stay in cache),
-    pixels in blocks of _BLOCK walked in lockstep: one pixel's walk is a chain of dependent
-    loads (latency bound), independent pixels fill the pipeline."""
-    h, w = img.shape
-    c = prob.shape[1]
-    nt = roots.shape[0]
-    npix = 0
-    for y in range(h):
-        for x in range(w):
-            if img[y, x] == BACKGROUND_MM:
-                out[y, x] = 0
-            else:
-                npix += 1
-    ys = np.empty(npix, np.int64)
-    xs = np.empty(npix, np.int64)
-    fys = np.empty(npix, np.float64)
-    fxs = np.empty(npix, np.float64)
-    scale = np.empty(npix, np.float64)
-    k = 0
-    for y in range(h):
-        for x in range(w):
-            if img[y, x] != BACKGROUND_MM:
-                ys[k] = y
-                xs[k] = x
-                fys[k] = y
-                fxs[k] = x
-                scale[k] = FOCAL_SCALE / np.float64(img[y, x])
-                k += 1
-    leaf = np.empty((nt, npix), np.int64)
-    for t in range(nt):
-        node = leaf[t]
-        for b0 in range(0, npix, _BLOCK):
-            nb = min(_BLOCK, npix - b0)
-            for p in range(b0, b0 + nb):
-                node[p] = roots[t]
-            active = nb
-            while active > 0:
-                active = 0
-                for p in range(b0, b0 + nb):
-                    n = node[p]
-                    lft = nodes[n, 3]
-                    if lft < 0:
-                        continue
-                    active += 1
-                    x = fxs[p]
-                    y = fys[p]
-                    s = scale[p]
-                    o1 = nodes[n, 0]
-                    o2 = nodes[n, 1]
-                    # same arithmetic as features._probe64 (PCL trees.cpp runThroughTree)
-                    u1 = np.uint64(min(max(int(np.float32(x + _lo16(o1) * s)), 0), w - 1))
-                    v1 = np.uint64(min(max(int(np.float32(y + _hi16(o1) * s)), 0), h - 1))
-                    u2 = np.uint64(min(max(int(np.float32(x + _lo16(o2) * s)), 0), w - 1))
-                    v2 = np.uint64(min(max(int(np.float32(y + _hi16(o2) * s)), 0), h - 1))
-                    f = np.int32(img[v1, u1]) - np.int32(img[v2, u2])
-                    node[p] = lft + 1 if f > nodes[n, 2] else lft
-    acc = np.zeros(c, np.float32)
-    for p in range(npix):
-        acc[:] = prob[leaf[0, p]]
-        for t in range(1, nt):
-            for q in range(c):
-                acc[q] += prob[leaf[t, p], q]
-        best = 0
-        for q in range(1, c):
-            if acc[q] > acc[best]:
-                best = q
-        out[ys[p], xs[p]] = best
-
-
-@numba.njit(parallel=True, cache=True)
-def _predict_batch(imgs, nodes, roots, prob, out):
-    for i in numba.prange(imgs.shape[0]):
-        _predict_frame(imgs[i], nodes, roots, prob, out[i])
-
-
 @numba.njit(cache=True)
 def _tree_labels(img, offsets, thresh, left, root, labels, out):
     h, w = img.shape
@@ -216,42 +127,40 @@ class Predictor:
 
     def __init__(self, forest: Forest):
         self.forest = forest
-        self._offsets = np.ascontiguousarray(forest.offsets, dtype=np.int64)
-        self._thresh = np.ascontiguousarray(forest.thresh, dtype=np.int32)
-        self._left = np.ascontiguousarray(forest.left, dtype=np.int64)
-        self._roots = np.ascontiguousarray(forest.roots, dtype=np.int64)
-        self._prob = forest.probabilities()
-        off = forest.offsets.astype(np.int32)
-        nodes = np.empty((len(forest.left), 4), np.int32)
-        nodes[:, 0] = (off[:, 0] & 0xFFFF) | (off[:, 1] << 16)
-        nodes[:, 1] = (off[:, 2] & 0xFFFF) | (off[:, 3] << 16)
-        nodes[:, 2] = forest.thresh
-        nodes[:, 3] = forest.left
-        self._nodes = nodes
+        self._sparse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # tree_labels
+        self._packed = pack_forest(forest.offsets, forest.thresh, forest.left, forest.counts,
+                                   forest.roots)
 
     def predict(self, depth: np.ndarray, prepared: bool = False) -> np.ndarray:
         """Labels of one frame (H, W) or a batch (N, H, W) of uint16 mm depth -> uint8.
 
         0 = background: no measurement, or the forest says background. A single frame runs
-        serially (one core); a batch runs frames in parallel over numba threads.
+        serially (one core); a batch runs frames in parallel over numba threads. The kernel
+        is :mod:`vhgen.forest.kernel`; sides up to 32767 px (else ForestError).
         """
         d = np.ascontiguousarray(depth, dtype=np.uint16) if prepared else prepare_depth(depth)
-        out = np.empty(d.shape, dtype=np.uint8)
-        if d.ndim == 2:
-            _predict_frame(d, self._nodes, self._roots, self._prob, out)
-        elif d.ndim == 3:
-            _predict_batch(d, self._nodes, self._roots, self._prob, out)
-        else:
+        if d.ndim not in (2, 3):
             raise ValueError(f"depth must be (H, W) or (N, H, W), got {d.shape}")
+        if max(d.shape[-2:]) > MAX_SIDE:
+            raise ForestError(f"depth images up to {MAX_SIDE} px a side, got {d.shape}")
+        out = np.empty(d.shape, dtype=np.uint8)
+        pf = self._packed
+        kernel = predict_frame if d.ndim == 2 else predict_batch
+        kernel(d, pf.nodes, pf.roots, pf.levels, pf.prob, out)
         return out
 
     def tree_labels(self, depth: np.ndarray, tree: int) -> np.ndarray:
         """(H, W) uint8: what tree ``tree`` alone outputs (argmax of its leaf), 0 where
         there is no measurement; the per-tree labelling PCL computes before its vote."""
+        if self._sparse is None:  # built on first use: most predictors never need it
+            f = self.forest
+            self._sparse = (np.ascontiguousarray(f.offsets, dtype=np.int64),
+                            np.ascontiguousarray(f.thresh, dtype=np.int32),
+                            np.ascontiguousarray(f.left, dtype=np.int64))
         d = prepare_depth(depth)
         out = np.empty(d.shape, dtype=np.uint8)
-        _tree_labels(d, self._offsets, self._thresh, self._left, int(self._roots[tree]),
-                     self.forest.leaf_labels(), out)
+        _tree_labels(d, *self._sparse, int(self.forest.roots[tree]), self.forest.leaf_labels(),
+                     out)
         return out
 
 
