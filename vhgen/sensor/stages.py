@@ -199,7 +199,7 @@ class CorrelationWindowStage(Stage[CorrelationWindow], spec=CorrelationWindow):
         # Splats fatten edges onto pixels the surface did not cover: those pixels now carry
         # a measurement while their label stays what was rendered there (the truth).
         lost = s.valid & ~ok
-        s.d = np.where(ok, out, 0.0)
+        s.d = out  # already 0 where not ok
         s.holes["window"] = s.hole("window") | lost
         s.valid = ok
 
