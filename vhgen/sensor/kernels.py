@@ -355,17 +355,24 @@ def remove_pixels(mask, valid, arr, hole):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def dropout_mask(z, valid, normals, rays_unit, ray_norm, cos_min, r_max):  # pragma: no cover
-    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) pixels."""
+def dropout_inplace(z, valid, normals, rays_unit, ray_norm, cos_min, r_max,
+                    hole):  # pragma: no cover
+    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) valid pixels
+    become invalid, get 0 in ``z`` and are marked in ``hole``, in one pass. Returns how
+    many were removed."""
     h, w = z.shape
-    out = np.zeros((h, w), dtype=np.bool_)
+    n = 0
     for y in range(h):
         for x in range(w):
             if valid[y, x]:
                 c = abs(normals[y, x, 0] * rays_unit[y, x, 0] + normals[y, x, 1] *
                         rays_unit[y, x, 1] + normals[y, x, 2] * rays_unit[y, x, 2])
-                out[y, x] = c < cos_min or z[y, x] * ray_norm[y, x] > r_max
-    return out
+                if c < cos_min or z[y, x] * ray_norm[y, x] > r_max:
+                    valid[y, x] = False
+                    z[y, x] = 0.0
+                    hole[y, x] = True
+                    n += 1
+    return n
 
 
 @numba.njit(cache=True, nogil=True)
