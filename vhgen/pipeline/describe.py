@@ -15,7 +15,7 @@ from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
 from vhgen.scene.config import BEHIND_M, CAMERA_CLEARANCE_M
 from vhgen.scene.description import CameraPose, FrameDescription, Person, PlacedProp
-from vhgen.scene.geometry import PROP, StaticMesh
+from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import (
     TALL_PROP_M,
     Disc,
@@ -194,6 +194,7 @@ class FrameDescriber:
                 pick = int(srng.integers(choices))
                 shape = (parametric(pc.kinds[pick], srng) if pick < len(pc.kinds)
                          else pc.meshes[pick - len(pc.kinds)])
+                cls = (pc.kind_classes + pc.mesh_classes)[pick]
                 heading = float(srng.uniform(-np.pi, np.pi))
                 occluder = bool(srng.uniform() < p_occ)
                 target = people[int(srng.integers(len(people)))].footprint
@@ -212,10 +213,10 @@ class FrameDescriber:
                     dropped["props"] += 1
                     continue
                 t = yaw_transform(heading, spot.x, spot.z)
-                props.append(PlacedProp(shape.kind, t, spot, occluder))
+                props.append(PlacedProp(shape.kind, t, spot, occluder, cls))
                 static.append(StaticMesh(f"prop:{shape.kind}",
                                          shape.vertices @ t[:3, :3].T + t[:3, 3], shape.faces,
-                                         np.full(len(shape.faces), PROP, np.uint8)))
+                                         np.full(len(shape.faces), sc.class_id(cls), np.uint8)))
                 discs.append(spot)
                 if tall:
                     walls.append(spot)

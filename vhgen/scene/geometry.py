@@ -10,10 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Scene classes (the ``classes`` array): ids are positions in this tuple. Users may append
-# names; these first five keep their ids.
+# Scene classes (the ``classes`` array): ids are positions in this tuple. A scene config
+# appends its props' own classes (``SceneConfig.class_names``); these first five keep
+# their ids in every store.
 SCENE_CLASSES: tuple[str, ...] = ("background", "floor", "wall", "prop", "person")
 BACKGROUND, FLOOR, WALL, PROP, PERSON = range(5)
+MAX_SCENE_CLASSES = 256  # the classes array is uint8
 
 
 def pack_ids(labels: np.ndarray, instances: np.ndarray, classes: np.ndarray) -> np.ndarray:
