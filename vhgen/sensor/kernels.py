@@ -54,12 +54,17 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             else:
                 thr[j + half, i + half] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
     out = np.zeros((h, w))
-    best = np.zeros((h, w))
-    outf = out.reshape(-1)
-    bestf = best.reshape(-1)
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
-    # splat footprint: offsets within the radius and their weights 1 / (1 + r^2)
+    if r2max > 254.0:
+        raise ValueError("correlation_window: splat radius above 15 px")
+    # The splat weight 1 / (1 + r^2) falls strictly with the integer r^2, so the pixel
+    # keeps the splat of smallest r^2: stored as the rank 255 - r^2 (0 = no splat yet),
+    # uint8, so the whole array stays in cache, instead of the float64 weight.
+    best = np.zeros((h, w), dtype=np.uint8)
+    outf = out.reshape(-1)
+    bestf = best.reshape(-1)
+    # splat footprint: offsets within the radius and their ranks
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -68,7 +73,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     oy = np.empty(m, dtype=np.int64)
     ox = np.empty(m, dtype=np.int64)
     of = np.empty(m, dtype=np.int64)
-    ow = np.empty(m)
+    ow = np.empty(m, dtype=np.uint8)
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -76,7 +81,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 oy[m] = j
                 ox[m] = i
                 of[m] = j * w + i
-                ow[m] = 1.0 / (1.0 + i * i + j * j)
+                ow[m] = 255 - (i * i + j * j)
                 m += 1
     for y in range(half, h - half):
         y0 = y - half
@@ -128,7 +133,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                     if 0 <= yy < h and 0 <= xx < w and ow[k] > best[yy, xx]:
                         best[yy, xx] = ow[k]
                         out[yy, xx] = dc
-    return out, best > 0.0
+    return out, best > 0
 
 
 @numba.njit(cache=True, nogil=True)
