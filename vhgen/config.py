@@ -6,6 +6,7 @@ errors. The core never handles raw dicts.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ from vhgen.scene.config import (
     RoomConfig,
     SceneConfig,
 )
+from vhgen.scene.geometry import MAX_SCENE_CLASSES, SCENE_CLASSES
 from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.sensor.config import SensorConfig
 from vhgen.yamlio import check_keys, find_config, load_yaml
@@ -306,33 +308,70 @@ def _int_range(d: dict, key: str, src, prefix: str, default: tuple[int, int], lo
     return int(a), int(b)
 
 
+# a class name: starts with a letter, then letters, digits, _ or - (it names a class in
+# the store's attributes and in tools' legends)
+_CLASS_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+
+
+def _prop_class(d: dict, src, field: str) -> str:
+    """The optional ``class`` of a prop entry ("prop" when absent)."""
+    name = d.get("class", "prop")
+    if not isinstance(name, str) or not _CLASS_NAME.fullmatch(name):
+        raise ConfigError(src, field, f"must be a name (a letter, then letters, digits, _ "
+                          f"or -; at most 64), got {name!r}")
+    if name in SCENE_CLASSES and name != "prop":
+        raise ConfigError(src, field, f"{name!r} is a built-in scene class "
+                          f"({', '.join(SCENE_CLASSES)}); give props a name of their own")
+    return name
+
+
 def _props(d: Any, src) -> PropsConfig:
     if d is True:
         d = {}
     check_keys(d, {"count", "kinds", "meshes", "occlusion"}, set(), src, "scene.props.")
     pd = PropsConfig()
-    kinds = d.get("kinds", list(pd.kinds))
-    if not isinstance(kinds, list) or not all(k in PARAMETRIC for k in kinds):
+    kinds_in = d.get("kinds", list(pd.kinds))
+    if not isinstance(kinds_in, list):
         raise ConfigError(src, "scene.props.kinds", f"must be a list of {', '.join(PARAMETRIC)}"
-                          f", got {kinds!r}")
-    meshes = []
+                          f" (or {{kind, class}} mappings), got {kinds_in!r}")
+    kinds, kind_classes = [], []
+    for i, k in enumerate(kinds_in):
+        field = f"scene.props.kinds[{i}]"
+        if isinstance(k, dict):
+            check_keys(k, {"kind", "class"}, {"kind"}, src, field + ".")
+            kind_classes.append(_prop_class(k, src, field + ".class"))
+            field, k = field + ".kind", k["kind"]
+        else:
+            kind_classes.append("prop")
+        if k not in PARAMETRIC:
+            raise ConfigError(src, field, f"must be one of {', '.join(PARAMETRIC)}, got {k!r}")
+        kinds.append(k)
+    meshes, mesh_classes = [], []
     for i, m in enumerate(d.get("meshes") or []):
         field = f"scene.props.meshes[{i}]"
         if isinstance(m, str):
             m = {"path": m}
         if not isinstance(m, dict):
-            raise ConfigError(src, field, f"must be a path or {{path, scale}}, got {m!r}")
-        check_keys(m, {"path", "scale"}, {"path"}, src, field + ".")
+            raise ConfigError(src, field, f"must be a path or {{path, scale, class}}, got {m!r}")
+        check_keys(m, {"path", "scale", "class"}, {"path"}, src, field + ".")
         scale = _num(m, "scale", src, field + ".", lo=1e-4, hi=1e4, default=1.0)
+        mesh_classes.append(_prop_class(m, src, field + ".class"))
         path = Path(str(m["path"])).expanduser()
         if not path.is_absolute() and src is not None:
             path = Path(src).parent / path
         meshes.append(load_mesh(path, scale, src, field + ".path"))
     if not kinds and not meshes:
         raise ConfigError(src, "scene.props.kinds", "no kinds and no meshes: nothing to place")
-    return PropsConfig(_int_range(d, "count", src, "scene.props.", pd.count, 0, 64),
-                       tuple(kinds), tuple(meshes),
-                       _range(d, "occlusion", src, "scene.props.", pd.occlusion, lo=0, hi=1))
+    props = PropsConfig(_int_range(d, "count", src, "scene.props.", pd.count, 0, 64),
+                        tuple(kinds), tuple(meshes),
+                        _range(d, "occlusion", src, "scene.props.", pd.occlusion, lo=0, hi=1),
+                        tuple(kind_classes), tuple(mesh_classes))
+    room = MAX_SCENE_CLASSES - len(SCENE_CLASSES)
+    if len(props.user_classes) > room:
+        raise ConfigError(src, "scene.props", f"{len(props.user_classes)} user classes; "
+                          f"the uint8 classes array holds {room} besides the built-in "
+                          f"{len(SCENE_CLASSES)}")
+    return props
 
 
 def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:

@@ -107,3 +107,36 @@ def test_static_draw_errors(gl_ctx):
     m.release()
     s.release()
     ren.release()
+
+
+@pytest.mark.parametrize("normals", [False, True])
+def test_packed_ids_are_exact_up_to_255(gl_ctx, normals):
+    """Part label, instance and class travel packed in one float channel: every value
+    0..255 of each comes back exactly, with and without the normals target, and a static
+    mesh's triangles keep their own (user) classes in one merged draw."""
+    bodies = {0: _Quad(-2.0, 0.0, -2, 2, 2.0, label=255)}
+    left = quad(np.array([[0.0, -2, 3.0], [9, -2, 3.0], [9, 0, 3.0], [0.0, 0, 3.0]]), 254,
+                "left")
+    right = quad(np.array([[0.0, 0, 3.0], [9, 0, 3.0], [9, 2, 3.0], [0.0, 2, 3.0]]), 7,
+                 "right")
+    ren = DepthLabelRenderer(gl_ctx, INTR, normals=normals)
+    scene = SceneRenderer(ren, bodies.__getitem__)
+    view = scene.render(_desc([_person(255, 0)], [left, right])).camera
+    scene.release()
+    ren.release()
+    assert view.ids.dtype == np.uint32 and view.ids.shape == (INTR.height, INTR.width)
+    assert view.labels.dtype == view.instances.dtype == view.classes.dtype == np.uint8
+    rays = pixel_rays(INTR)
+    person = rays[..., 0] * 2.0 < -0.05
+    up, down = (rays[..., 0] * 3.0 > 0.05) & (rays[..., 1] * 3 < -0.05), \
+        (rays[..., 0] * 3.0 > 0.05) & (rays[..., 1] * 3 > 0.05)
+    assert (view.labels[person] == 255).all() and (view.instances[person] == 255).all()
+    assert (view.classes[person] == PERSON).all()
+    assert (view.classes[up] == 254).all() and (view.classes[down] == 7).all()
+    assert (view.labels[up | down] == 0).all() and (view.instances[up | down] == 0).all()
+    assert (view.ids[person] == 255 | 255 << 8 | PERSON << 16).all()
+    assert (view.normals is not None) == normals
+    if normals:
+        assert view.normals is not None and view.normals.shape == (INTR.height, INTR.width, 3)
+        np.testing.assert_allclose(view.normals[up], np.tile([0.0, 0.0, -1.0], (up.sum(), 1)),
+                                   atol=1e-5)

@@ -8,35 +8,55 @@ its rest head and ``p_b`` its posed head: ``p_root`` is given, and
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from vhgen.body.mesh import Rig
 from vhgen.rotations import matrix_to_quaternion
 
 
+@lru_cache(maxsize=16)
+def _levels(parents: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """Bone indices grouped by depth below their root (roots excluded), shallow first."""
+    depth = [0] * len(parents)
+    for k, par in enumerate(parents):
+        depth[k] = 0 if par < 0 else depth[par] + 1
+    d = np.array(depth, dtype=np.int64)
+    return tuple(np.flatnonzero(d == level) for level in range(1, int(d.max(initial=0)) + 1))
+
+
 def posed_heads(rig: Rig, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """Posed head positions (..., B, 3) float64 from rotations (..., B, 3, 3), root (..., 3)."""
+    """Posed head positions (..., B, 3) float64 from rotations (..., B, 3, 3), root (..., 3).
+
+    One vectorised step per depth of the tree (bones of a level only need their parents'
+    heads); each head is the same sum, in the same order, as bone by bone."""
     rotations = np.asarray(rotations, np.float64)
     root = np.asarray(root, np.float64)
+    parents = np.asarray(rig.parents)
     out = np.empty(rotations.shape[:-2] + (3,), dtype=np.float64)
-    for k, par in enumerate(rig.parents):
-        if par < 0:
-            out[..., k, :] = root
-        else:
-            out[..., k, :] = out[..., par, :] + np.einsum(
-                "...ij,j->...i", rotations[..., par, :, :], rig.heads[k] - rig.heads[par])
+    out[..., parents < 0, :] = root[..., None, :]
+    for level in _levels(tuple(int(p) for p in parents)):
+        par = parents[level]
+        out[..., level, :] = out[..., par, :] + np.einsum(
+            "...kij,kj->...ki", rotations[..., par, :, :], rig.heads[level] - rig.heads[par])
     return out
 
 
-def bone_matrices(rig: Rig, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """Skinning matrices (..., B, 4, 4) float64: M_b = [A_b | p_b - A_b h_b]."""
+def matrices_from_heads(rig: Rig, rotations: np.ndarray, heads: np.ndarray) -> np.ndarray:
+    """Skinning matrices (..., B, 4, 4) float64 from rotations (..., B, 3, 3) and the posed
+    heads (..., B, 3) of :func:`posed_heads` (callers that need both compute heads once)."""
     rotations = np.asarray(rotations, np.float64)
-    heads = posed_heads(rig, rotations, root)
     out = np.zeros(rotations.shape[:-2] + (4, 4), dtype=np.float64)
     out[..., :3, :3] = rotations
     out[..., :3, 3] = heads - np.einsum("...ij,...j->...i", rotations, rig.heads)
     out[..., 3, 3] = 1.0
     return out
+
+
+def bone_matrices(rig: Rig, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """Skinning matrices (..., B, 4, 4) float64: M_b = [A_b | p_b - A_b h_b]."""
+    return matrices_from_heads(rig, rotations, posed_heads(rig, rotations, root))
 
 
 def skin_vertices(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,

@@ -10,12 +10,12 @@ from vhgen.body.kernels import skin_points
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import Body, build_body
 from vhgen.body.shape import Shape
-from vhgen.body.skinning import bone_matrices, posed_heads
+from vhgen.body.skinning import matrices_from_heads, posed_heads
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
 from vhgen.scene.config import BEHIND_M, CAMERA_CLEARANCE_M
 from vhgen.scene.description import CameraPose, FrameDescription, Person, PlacedProp
-from vhgen.scene.geometry import PROP, StaticMesh
+from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import (
     TALL_PROP_M,
     Disc,
@@ -109,18 +109,20 @@ class FrameDescriber:
         root = self.roots[pose] * (body.hip_drop / self._base_hip_drop)
         offset = np.array([-root[0], 0.0, -root[2]])
         disc = None
+        heads = posed_heads(body.rig, rot, root + offset)
+        mats = matrices_from_heads(body.rig, rot, heads)
         if ground or footprint:
-            verts = skin_points(body.vertices, body.joints, body.weights,
-                                bone_matrices(body.rig, rot, root + offset))
+            verts = skin_points(body.vertices, body.joints, body.weights, mats)
             lowest = verts[:, 1].min()
             if ground and lowest < FLOOR_SNAP_M:
                 offset[1] = -lowest
+                # moved: posed again from the new root (the same sums as a fresh pose)
+                heads = posed_heads(body.rig, rot, root + offset)
+                mats = matrices_from_heads(body.rig, rot, heads)
             xz = verts[:, [0, 2]]
             c = (xz.min(0) + xz.max(0)) / 2
             disc = Disc(float(c[0]), float(c[1]), float(np.hypot(*(xz - c).T).max()))
-        root = root + offset
-        return Person(instance, avatar_id, pose, bone_matrices(body.rig, rot, root),
-                      posed_heads(body.rig, rot, root), offset, footprint=disc)
+        return Person(instance, avatar_id, pose, mats, heads, offset, footprint=disc)
 
     def describe(self, frame: int) -> FrameDescription:
         """The frame's description. The first person and the camera come from the frame
@@ -192,6 +194,7 @@ class FrameDescriber:
                 pick = int(srng.integers(choices))
                 shape = (parametric(pc.kinds[pick], srng) if pick < len(pc.kinds)
                          else pc.meshes[pick - len(pc.kinds)])
+                cls = (pc.kind_classes + pc.mesh_classes)[pick]
                 heading = float(srng.uniform(-np.pi, np.pi))
                 occluder = bool(srng.uniform() < p_occ)
                 target = people[int(srng.integers(len(people)))].footprint
@@ -210,10 +213,10 @@ class FrameDescriber:
                     dropped["props"] += 1
                     continue
                 t = yaw_transform(heading, spot.x, spot.z)
-                props.append(PlacedProp(shape.kind, t, spot, occluder))
+                props.append(PlacedProp(shape.kind, t, spot, occluder, cls))
                 static.append(StaticMesh(f"prop:{shape.kind}",
                                          shape.vertices @ t[:3, :3].T + t[:3, 3], shape.faces,
-                                         np.full(len(shape.faces), PROP, np.uint8)))
+                                         np.full(len(shape.faces), sc.class_id(cls), np.uint8)))
                 discs.append(spot)
                 if tall:
                     walls.append(spot)

@@ -47,7 +47,8 @@ from vhgen.store.zarr_store import clean_partials, completed_shards, create_stor
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3  # retries of one shard after its worker died
-_RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor")
+_RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor",
+                "class_names")
 
 
 @dataclass
@@ -421,6 +422,7 @@ def _config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict:
         "label_scheme": scheme.name,
         "label_names": scheme.names,
         "label_colors": scheme.palette.tolist(),
+        "class_names": list(cfg.scene.class_names),
         "sensor": cfg.sensor.to_dict(),
         "depth_units": "millimetre (uint16), 0 = no measurement",
         "frames_per_shard": cfg.frames_per_shard,

@@ -22,6 +22,7 @@ import numpy as np
 from vhgen.config import JobConfig
 from vhgen.pipeline.describe import FrameDescriber, sample_camera
 from vhgen.scene.description import FrameDescription, Person
+from vhgen.scene.geometry import pack_ids, unpack_ids
 from vhgen.scene.truth import joint_visibility, project
 from vhgen.sensor.model import SensorModel
 from vhgen.store.manifest import write_part
@@ -34,19 +35,6 @@ if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types her
 log = logging.getLogger(__name__)
 
 __all__ = ["FrameGenerator", "FrameOutput", "pack_ids", "sample_camera"]
-
-
-def pack_ids(labels: np.ndarray, instances: np.ndarray, classes: np.ndarray) -> np.ndarray:
-    """(H, W) uint32: part label | instance << 8 | class << 16. The sensor moves this one
-    array with the pixels, so the three id images stay aligned with the depth."""
-    return (labels.astype(np.uint32) | (instances.astype(np.uint32) << 8)
-            | (classes.astype(np.uint32) << 16))
-
-
-def unpack_ids(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The inverse of :func:`pack_ids`: labels, instances, classes, (H, W) uint8 each."""
-    return ((packed & 0xFF).astype(np.uint8), ((packed >> 8) & 0xFF).astype(np.uint8),
-            ((packed >> 16) & 0xFF).astype(np.uint8))
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,7 +84,7 @@ class FrameGenerator:
         views = self.scene.render(desc, s.baseline_m if "projector_depth" in s.needs
                                   else None)
         cam = views.camera
-        packed = pack_ids(cam.labels, cam.instances, cam.classes)
+        packed = cam.ids  # the sensor moves this one array with the pixels
         out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
                                    normals=cam.normals, projector_depth=views.projector_depth)
         labels, instances, classes = unpack_ids(out.labels if out.labels is not None

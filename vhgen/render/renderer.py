@@ -1,8 +1,9 @@
 """Skinned depth + label rendering with moderngl.
 
 The renderer receives a context (see :mod:`vhgen.render.context`); it never creates one.
-One draw fills one RGBA32F target (planar depth, part label, person instance, scene class);
-a scene is several draws into the same target, depth-tested against each other.
+One draw fills two targets: planar depth (with the camera-frame normals when asked for),
+and the ids (part label, person instance, scene class) packed in one channel; a scene is
+several draws into the same targets, depth-tested against each other.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
+from vhgen.scene.geometry import id_bytes
 
 LABEL_TEX_WIDTH = 4096
 
@@ -100,15 +102,30 @@ class Draw:
 
 @dataclass(frozen=True, eq=False)
 class View:
-    """What one draw of a whole scene leaves in the target, (H, W) each: planar depth
-    float32 metres (0 = no hit), part labels, instances and classes uint8, and the
-    camera-frame normals (H, W, 3) float32 when the renderer was made with normals."""
+    """What one draw of a whole scene leaves in the targets, (H, W) each: planar depth
+    float32 metres (0 = no hit), ``ids`` uint32 (see :func:`pack_ids`; 0 = no hit), and
+    the camera-frame normals (H, W, 3) float32 when the renderer was made with normals.
+    ``labels``, ``instances`` and ``classes`` are (H, W) uint8 views into ``ids`` (no
+    copy; not contiguous)."""
 
     depth: np.ndarray
-    labels: np.ndarray
-    instances: np.ndarray
-    classes: np.ndarray
+    ids: np.ndarray
     normals: np.ndarray | None
+
+    @property
+    def labels(self) -> np.ndarray:
+        """(H, W) uint8 body-part labels (0 = not a person)."""
+        return id_bytes(self.ids)[..., 0]
+
+    @property
+    def instances(self) -> np.ndarray:
+        """(H, W) uint8 person instance (0 = no person)."""
+        return id_bytes(self.ids)[..., 1]
+
+    @property
+    def classes(self) -> np.ndarray:
+        """(H, W) uint8 scene class."""
+        return id_bytes(self.ids)[..., 2]
 
 
 class DepthLabelRenderer:
@@ -133,15 +150,14 @@ class DepthLabelRenderer:
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
         size = (intr.width, intr.height)
-        self.color = ctx.texture(size, 4, dtype="f4")
-        attachments = [self.color]
-        if self.want_normals:  # a second target only when a sensor effect needs normals
-            self.normal_tex = ctx.texture(size, 4, dtype="f4")
-            attachments.append(self.normal_tex)
-            self._normals = np.empty((intr.height, intr.width, 4), dtype=np.float32)
+        # depth alone, or depth and the normal in one texel (normals only when a sensor
+        # effect needs them); the packed ids in a second target
+        self._depth_components = 4 if self.want_normals else 1
+        self.color = ctx.texture(size, self._depth_components, dtype="f4")
+        self.ids_tex = ctx.texture(size, 1, dtype="f4")
         self.depth = ctx.depth_renderbuffer(size)
-        self.fbo = ctx.framebuffer(color_attachments=attachments, depth_attachment=self.depth)
-        self._out = np.empty((intr.height, intr.width, 4), dtype=np.float32)
+        self.fbo = ctx.framebuffer(color_attachments=[self.color, self.ids_tex],
+                                   depth_attachment=self.depth)
         self.program: Any = None
         self.num_bones = 0
         self._single: GpuMesh | None = None
@@ -237,20 +253,25 @@ class DepthLabelRenderer:
                                   f"got {m.shape}")
             write_bones(self.program, m, self.skinning)
             self.program["labels_are_classes"].value = int(d.mesh.static)
-            self.program["instance_id"].value = float(d.instance)
-            self.program["draw_class"].value = float(d.draw_class)
+            self.program["instance_id"].value = int(d.instance)
+            self.program["draw_class"].value = int(d.draw_class)
             d.mesh.label_tex.use(0)
             d.mesh.vao.render(moderngl.TRIANGLES)
-        self.fbo.read_into(self._out, components=4, dtype="f4")
+        h, w = self.intr.height, self.intr.width
+        k = self._depth_components
+        out = np.empty((h, w, k) if k > 1 else (h, w), dtype=np.float32)
+        self.fbo.read_into(out, components=k, dtype="f4")
+        ids = np.empty((h, w), dtype=np.float32)
+        self.fbo.read_into(ids, components=1, attachment=1, dtype="f4")
+        self._check("after draw")
         normals = None
         if self.want_normals:
-            self.fbo.read_into(self._normals, components=4, attachment=1, dtype="f4")
-            normals = self._normals[..., :3].copy()
+            normals = out[..., 1:]
             self.normals = normals
-        self._check("after draw")
-        out = self._out
-        return View(out[..., 0].copy(), out[..., 1].astype(np.uint8),
-                    out[..., 2].astype(np.uint8), out[..., 3].astype(np.uint8), normals)
+            depth = np.ascontiguousarray(out[..., 0])
+        else:
+            depth = out
+        return View(depth, ids.astype(np.uint32), normals)
 
     def render(self, camera_bones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Draw the :meth:`set_mesh` mesh in one pose.
@@ -271,8 +292,7 @@ class DepthLabelRenderer:
         if self._single is not None:
             self._single.release()
             self._single = None
-        extra = (self.normal_tex,) if self.want_normals else ()
-        for obj in (self.program, self.fbo, self.color, self.depth, *extra):
+        for obj in (self.program, self.fbo, self.color, self.ids_tex, self.depth):
             if obj is not None:
                 obj.release()
         self.program = None

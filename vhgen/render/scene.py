@@ -15,7 +15,7 @@ import numpy as np
 from vhgen.body.model import Body
 from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
-from vhgen.scene.geometry import PERSON
+from vhgen.scene.geometry import PERSON, StaticMesh
 
 MAX_RESIDENT_AVATARS = 4
 
@@ -33,6 +33,17 @@ def world_to_projector(world_to_camera: np.ndarray, baseline_m: float) -> np.nda
     w2p = np.array(world_to_camera, dtype=np.float64)
     w2p[0, 3] -= baseline_m
     return w2p
+
+
+def merge_static(meshes: tuple[StaticMesh, ...] | list[StaticMesh]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Static meshes concatenated in order: vertices (V, 3) float64, faces (T, 3) int64
+    (re-indexed), face classes (T,) uint8."""
+    starts = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    return (np.concatenate([m.vertices for m in meshes]),
+            np.concatenate([np.asarray(m.faces, np.int64) + k
+                            for m, k in zip(meshes, starts, strict=True)]),
+            np.concatenate([np.asarray(m.face_classes, np.uint8) for m in meshes]))
 
 
 class SceneRenderer:
@@ -60,8 +71,12 @@ class SceneRenderer:
         """The camera view and, when ``projector_baseline_m`` is given, the projector's
         depth of the same scene."""
         people = [(self._mesh(p.avatar_id), p) for p in desc.people]
-        static = [self.renderer.upload_static(m.vertices, m.faces, m.face_classes)
-                  for m in desc.static]
+        # all static geometry as one mesh, one draw: the same triangles in the same order
+        # (so the same depth-test outcome) for a fraction of the GL objects and calls
+        static = []
+        if desc.static:
+            v, f, c = merge_static(desc.static)
+            static.append(self.renderer.upload_static(v, f, c))
         try:
             def draws(w2v: np.ndarray) -> list[Draw]:
                 return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]

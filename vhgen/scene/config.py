@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from vhgen.scene.geometry import PROP, SCENE_CLASSES
 from vhgen.scene.props import PARAMETRIC, PropShape
 
 # Clearances used to place a room around the person and the camera (metres): a person
@@ -39,6 +40,27 @@ class PropsConfig:
     kinds: tuple[str, ...] = PARAMETRIC
     meshes: tuple[PropShape, ...] = ()
     occlusion: tuple[float, float] = (0.3, 0.6)
+    # the scene class of each entry of ``kinds`` / ``meshes`` (same length; "prop" unless
+    # the config gave the entry a ``class`` of its own)
+    kind_classes: tuple[str, ...] = ()
+    mesh_classes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        # a config built in code may leave the classes out: every entry is a plain prop
+        if not self.kind_classes:
+            object.__setattr__(self, "kind_classes", ("prop",) * len(self.kinds))
+        if not self.mesh_classes:
+            object.__setattr__(self, "mesh_classes", ("prop",) * len(self.meshes))
+        if (len(self.kind_classes) != len(self.kinds)
+                or len(self.mesh_classes) != len(self.meshes)):
+            raise ValueError("kind_classes / mesh_classes must match kinds / meshes")
+
+    @property
+    def user_classes(self) -> tuple[str, ...]:
+        """Class names beyond the built-in ones, in order of first appearance (kinds, then
+        meshes)."""
+        names = [c for c in self.kind_classes + self.mesh_classes if c not in SCENE_CLASSES]
+        return tuple(dict.fromkeys(names))
 
 
 @dataclass(frozen=True)
@@ -53,6 +75,16 @@ class SceneConfig:
     # each person keeps at least this fraction of its width in view past nearer people
     # and tall props (a floor-plan test at placement time; see placement.visible_fraction)
     min_visible_fraction: float = 0.5
+
+    @property
+    def class_names(self) -> tuple[str, ...]:
+        """The names of the ``classes`` array's ids: the built-in five (background, floor,
+        wall, prop, person; ids 0-4, fixed) then the props' user classes."""
+        return SCENE_CLASSES + (self.props.user_classes if self.props is not None else ())
+
+    def class_id(self, name: str) -> int:
+        """The ``classes`` id of a class name of this scene (``prop`` = 3)."""
+        return PROP if name == "prop" else self.class_names.index(name)
 
     @property
     def has_geometry(self) -> bool:

@@ -33,19 +33,26 @@ class Person:
 @dataclass(frozen=True, eq=False)
 class PlacedProp:
     """A prop in a frame: its kind (or mesh file name), the (4, 4) world transform of its
-    own frame, its footprint, and whether it was put on a line of sight to a person."""
+    own frame, its footprint, whether it was put on a line of sight to a person, and its
+    scene class name."""
 
     kind: str
     transform: np.ndarray
     footprint: Disc
     occluder: bool
+    class_name: str = "prop"
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "x": self.footprint.x, "z": self.footprint.z,
-                "radius": self.footprint.r,
-                "yaw_deg": float(np.rad2deg(np.arctan2(self.transform[0, 2],
-                                                       self.transform[0, 0]))),
-                "occluder": self.occluder}
+        """The manifest's record of the prop; ``class`` only for a user class (absent =
+        the built-in "prop", so stores of configs without user classes keep their bytes)."""
+        d = {"kind": self.kind, "x": self.footprint.x, "z": self.footprint.z,
+             "radius": self.footprint.r,
+             "yaw_deg": float(np.rad2deg(np.arctan2(self.transform[0, 2],
+                                                    self.transform[0, 0]))),
+             "occluder": self.occluder}
+        if self.class_name != "prop":
+            d["class"] = self.class_name
+        return d
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,10 +10,33 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Scene classes (the ``classes`` array): ids are positions in this tuple. Users may append
-# names; these first five keep their ids.
+# Scene classes (the ``classes`` array): ids are positions in this tuple. A scene config
+# appends its props' own classes (``SceneConfig.class_names``); these first five keep
+# their ids in every store.
 SCENE_CLASSES: tuple[str, ...] = ("background", "floor", "wall", "prop", "person")
 BACKGROUND, FLOOR, WALL, PROP, PERSON = range(5)
+MAX_SCENE_CLASSES = 256  # the classes array is uint8
+
+
+def pack_ids(labels: np.ndarray, instances: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """(H, W) uint32: part label | instance << 8 | class << 16, the one id image the
+    renderer writes and the sensor moves with the pixels (so the three stay aligned)."""
+    return (labels.astype(np.uint32) | (instances.astype(np.uint32) << 8)
+            | (classes.astype(np.uint32) << 16))
+
+
+def id_bytes(packed: np.ndarray) -> np.ndarray:
+    """(..., 4) uint8 view of packed ids (no copy): [..., 0] labels, [..., 1] instances,
+    [..., 2] classes."""
+    p = np.asarray(packed).astype("<u4", copy=False)
+    return p.view(np.uint8).reshape(p.shape + (4,))
+
+
+def unpack_ids(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The inverse of :func:`pack_ids`: labels, instances, classes, (H, W) uint8 each."""
+    b = id_bytes(packed)
+    return (np.ascontiguousarray(b[..., 0]), np.ascontiguousarray(b[..., 1]),
+            np.ascontiguousarray(b[..., 2]))
 
 
 @dataclass(frozen=True, eq=False)

@@ -41,14 +41,9 @@ def inside(room: Room | None, d: Disc, gap: float = WALL_GAP_M) -> bool:
     always)."""
     if room is None:
         return True
-    c = room.corners_xz
-    area2 = sum(c[k, 0] * c[(k + 1) % 4, 1] - c[(k + 1) % 4, 0] * c[k, 1] for k in range(4))
-    sign = 1.0 if area2 > 0 else -1.0
-    for k in range(4):
-        a, b = c[k], c[(k + 1) % 4]
-        e = b - a
-        dist = sign * (e[0] * (d.z - a[1]) - e[1] * (d.x - a[0])) / np.hypot(e[0], e[1])
-        if dist < d.r + gap:
+    sign, edges = room.edges
+    for ax, az, ex, ez, length in edges:
+        if sign * (ex * (d.z - az) - ez * (d.x - ax)) / length < d.r + gap:
             return False
     return True
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -26,6 +27,21 @@ class Room:
     width_m: float
     depth_m: float
     yaw_deg: float
+
+    @cached_property
+    def edges(self) -> tuple[float, tuple[tuple[float, float, float, float, float], ...]]:
+        """The floor's orientation sign (+1 counter-clockwise) and, per edge k (corner k to
+        k + 1), (a_x, a_z, e_x, e_z, |e|): its start, direction and length, for the
+        signed distance of a point inside (placement asks this thousands of times)."""
+        c = self.corners_xz
+        area2 = sum(c[k, 0] * c[(k + 1) % 4, 1] - c[(k + 1) % 4, 0] * c[k, 1] for k in range(4))
+        edges = []
+        for k in range(4):
+            a, b = c[k], c[(k + 1) % 4]
+            e = b - a
+            edges.append((float(a[0]), float(a[1]), float(e[0]), float(e[1]),
+                          float(np.hypot(e[0], e[1]))))
+        return (1.0 if area2 > 0 else -1.0), tuple(edges)
 
     def to_dict(self) -> dict:
         return {"corners_xz": np.round(self.corners_xz, 6).tolist(), "height_m": self.height_m,

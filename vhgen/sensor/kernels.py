@@ -18,8 +18,12 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats its
     own disparity to every pixel within ``splat_r`` px, where the splat weight 1 / (1 + r^2)
     beats what the pixel already holds. Pixels no accepted dot reaches are holes.
-    Window counts and sums come from summed-area tables (O(1) per pixel); the inlier scan
-    stops as soon as the verdict is certain. Returns (d_out, valid_out).
+    Window counts and sums come from summed-area tables (O(1) per pixel); the inliers are
+    counted a window row at a time, branch-free inside the row (the row is contiguous, so
+    the compiler vectorises it), and the scan stops after the first row at which the
+    verdict is certain. The verdict depends only on the total inlier count, so the order
+    of the count does not change it. Returns (d_out, valid_out); d_out is 0 where
+    valid_out is False.
     """
     h, w = d.shape
     # summed-area tables of dots, valid dots and their disparities
@@ -41,13 +45,6 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             sd[y + 1, x + 1] = sd[y, x + 1] + rd
             sv[y + 1, x + 1] = sv[y, x + 1] + rv
             ss[y + 1, x + 1] = ss[y, x + 1] + rs
-    # nxt[y, x]: first column >= x of row y holding a valid dot (w if none): the inlier
-    # scan jumps from dot to dot instead of visiting every window cell
-    nxt = np.empty((h, w + 1), dtype=np.int32)
-    for y in range(h):
-        nxt[y, w] = w
-        for x in range(w - 1, -1, -1):
-            nxt[y, x] = x if dv[y, x] else nxt[y, x + 1]
     n = 2 * half + 1
     thr = np.empty((n, n))  # |d - m| < thr[j, i]  <=>  |d - m| * w(i, j) < inlier_px
     for j in range(-half, half + 1):
@@ -57,12 +54,17 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             else:
                 thr[j + half, i + half] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
     out = np.zeros((h, w))
-    best = np.zeros((h, w))
-    outf = out.reshape(-1)
-    bestf = best.reshape(-1)
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
-    # splat footprint: offsets within the radius and their weights 1 / (1 + r^2)
+    if r2max > 254.0:
+        raise ValueError("correlation_window: splat radius above 15 px")
+    # The splat weight 1 / (1 + r^2) falls strictly with the integer r^2, so the pixel
+    # keeps the splat of smallest r^2: stored as the rank 255 - r^2 (0 = no splat yet),
+    # uint8, so the whole array stays in cache, instead of the float64 weight.
+    best = np.zeros((h, w), dtype=np.uint8)
+    outf = out.reshape(-1)
+    bestf = best.reshape(-1)
+    # splat footprint: offsets within the radius and their ranks
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -71,7 +73,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     oy = np.empty(m, dtype=np.int64)
     ox = np.empty(m, dtype=np.int64)
     of = np.empty(m, dtype=np.int64)
-    ow = np.empty(m)
+    ow = np.empty(m, dtype=np.uint8)
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -79,7 +81,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 oy[m] = j
                 ox[m] = i
                 of[m] = j * w + i
-                ow[m] = 1.0 / (1.0 + i * i + j * j)
+                ow[m] = 255 - (i * i + j * j)
                 m += 1
     for y in range(half, h - half):
         y0 = y - half
@@ -100,18 +102,19 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             accepted = False
             for j in range(n):
                 yy = y0 + j
-                xx = nxt[yy, x0]
-                while xx < x1:
-                    left -= 1
-                    if abs(d[yy, xx] - mean) < thr[j, xx - x0]:
-                        inl += 1
-                        if inl > need:
-                            accepted = True
-                            break
-                    elif inl + left <= need:
-                        break
-                    xx = nxt[yy, xx + 1]
-                if accepted or inl + left <= need:
+                row_dots = 0
+                row_inl = 0
+                for i in range(n):
+                    is_dot = dv[yy, x0 + i]
+                    inlier = abs(d[yy, x0 + i] - mean) < thr[j, i]
+                    row_dots += 1 if is_dot else 0
+                    row_inl += 1 if is_dot and inlier else 0
+                inl += row_inl
+                left -= row_dots
+                if inl > need:
+                    accepted = True
+                    break
+                if inl + left <= need:
                     break
             if not accepted:
                 continue
@@ -130,7 +133,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                     if 0 <= yy < h and 0 <= xx < w and ow[k] > best[yy, xx]:
                         best[yy, xx] = ow[k]
                         out[yy, xx] = dc
-    return out, best > 0.0
+    return out, best > 0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -168,11 +171,14 @@ def screen_space_shadow(d, valid, projector_right):  # pragma: no cover
 
 @numba.njit(cache=True, nogil=True)
 def invert_inplace(a, valid, fb):  # pragma: no cover
-    """a <- fb / a where valid, 0 elsewhere (depth <-> disparity), in place."""
+    """a <- fb / a where valid, 0 elsewhere (depth <-> disparity), in place. Branch-free
+    (selects, so the loop vectorises): its cost does not grow with the valid pixels."""
     f = a.reshape(-1)
     v = valid.reshape(-1)
     for i in range(f.size):
-        f[i] = fb / f[i] if v[i] else 0.0
+        ok = v[i]
+        q = fb / (f[i] if ok else 1.0)
+        f[i] = q if ok else 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -189,19 +195,18 @@ def add_noise_sigma_inplace(a, valid, draws, table, sigma):  # pragma: no cover
 @numba.njit(cache=True, nogil=True)
 def quantise_inplace(d, valid, step):  # pragma: no cover
     """d <- floor(d / step + 0.5) * step where valid; pixels ending at d <= 0 turn invalid.
-    Returns the bool mask of those pixels."""
+    Returns the bool mask of those pixels. Branch-free, like :func:`invert_inplace`."""
     f = d.reshape(-1)
     v = valid.reshape(-1)
-    lost = np.zeros(f.size, dtype=np.bool_)
+    lost = np.empty(f.size, dtype=np.bool_)
     for i in range(f.size):
-        if v[i]:
-            q = np.floor(f[i] / step + 0.5) * step
-            if q <= 0.0:
-                lost[i] = True
-                v[i] = False
-                f[i] = 0.0
-            else:
-                f[i] = q
+        ok = v[i]
+        x = f[i]
+        q = np.floor(x / step + 0.5) * step
+        drop = ok & (q <= 0.0)
+        lost[i] = drop
+        v[i] = ok & (q > 0.0)
+        f[i] = 0.0 if drop else (q if ok else x)
     return lost.reshape(d.shape)
 
 
@@ -256,29 +261,33 @@ def dots_from_pattern(d, valid, pattern, pad):  # pragma: no cover
 
 @numba.njit(cache=True, nogil=True)
 def gather_state(idx, z, valid, normals, labels):  # pragma: no cover
-    """z, valid, normals, labels re-sampled at flat source indices ``idx`` in one pass
-    (normals and labels may be empty arrays when absent)."""
+    """z, valid, normals, labels re-sampled at flat source indices ``idx`` (normals and
+    labels may be empty arrays when absent). One loop per array: a fused loop over all
+    four ran 3x slower (it does not vectorise)."""
     h, w = z.shape
     zf = z.reshape(-1)
     vf = valid.reshape(-1)
     z2 = np.empty(h * w)
     v2 = np.empty(h * w, dtype=np.bool_)
-    has_n = normals.size == h * w * 3
-    has_l = labels.size == h * w
-    n2 = np.empty((h * w, 3), dtype=normals.dtype) if has_n else normals.reshape(-1, 3)
-    l2 = np.empty(h * w, dtype=labels.dtype) if has_l else labels.reshape(-1)
-    nf = normals.reshape(-1, 3)
-    lf = labels.reshape(-1)
     for i in range(h * w):
-        k = idx[i]
-        z2[i] = zf[k]
-        v2[i] = vf[k]
-        if has_n:
+        z2[i] = zf[idx[i]]
+    for i in range(h * w):
+        v2[i] = vf[idx[i]]
+    nf = normals.reshape(-1, 3)
+    n2 = nf
+    if normals.size == h * w * 3:
+        n2 = np.empty((h * w, 3), dtype=normals.dtype)
+        for i in range(h * w):
+            k = idx[i]
             n2[i, 0] = nf[k, 0]
             n2[i, 1] = nf[k, 1]
             n2[i, 2] = nf[k, 2]
-        if has_l:
-            l2[i] = lf[k]
+    lf = labels.reshape(-1)
+    l2 = lf
+    if labels.size == h * w:
+        l2 = np.empty(h * w, dtype=labels.dtype)
+        for i in range(h * w):
+            l2[i] = lf[idx[i]]
     return z2.reshape(h, w), v2.reshape(h, w), n2, l2
 
 
@@ -351,17 +360,24 @@ def remove_pixels(mask, valid, arr, hole):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def dropout_mask(z, valid, normals, rays_unit, ray_norm, cos_min, r_max):  # pragma: no cover
-    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) pixels."""
+def dropout_inplace(z, valid, normals, rays_unit, ray_norm, cos_min, r_max,
+                    hole):  # pragma: no cover
+    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) valid pixels
+    become invalid, get 0 in ``z`` and are marked in ``hole``, in one pass. Returns how
+    many were removed."""
     h, w = z.shape
-    out = np.zeros((h, w), dtype=np.bool_)
+    n = 0
     for y in range(h):
         for x in range(w):
             if valid[y, x]:
                 c = abs(normals[y, x, 0] * rays_unit[y, x, 0] + normals[y, x, 1] *
                         rays_unit[y, x, 1] + normals[y, x, 2] * rays_unit[y, x, 2])
-                out[y, x] = c < cos_min or z[y, x] * ray_norm[y, x] > r_max
-    return out
+                if c < cos_min or z[y, x] * ray_norm[y, x] > r_max:
+                    valid[y, x] = False
+                    z[y, x] = 0.0
+                    hole[y, x] = True
+                    n += 1
+    return n
 
 
 @numba.njit(cache=True, nogil=True)

@@ -25,7 +25,7 @@ from vhgen.sensor.kernels import (
     add_noise_sigma_inplace,
     correlation_window,
     dots_from_pattern,
-    dropout_mask,
+    dropout_inplace,
     gate_inplace,
     gather_state,
     lateral_indices,
@@ -199,7 +199,7 @@ class CorrelationWindowStage(Stage[CorrelationWindow], spec=CorrelationWindow):
         # Splats fatten edges onto pixels the surface did not cover: those pixels now carry
         # a measurement while their label stays what was rendered there (the truth).
         lost = s.valid & ~ok
-        s.d = np.where(ok, out, 0.0)
+        s.d = out  # already 0 where not ok
         s.holes["window"] = s.hole("window") | lost
         s.valid = ok
 
@@ -213,8 +213,9 @@ class DropoutStage(Stage[Dropout], spec=Dropout):
         # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16, r = z |ray|
         r_max = (p.albedo - 0.01) / 0.16
         cos_min = np.cos(np.deg2rad(p.max_angle_deg))
-        s.invalidate(dropout_mask(z, s.valid, np.ascontiguousarray(s.normals), s.rays_unit,
-                                  s.ray_norm, cos_min, r_max), "dropout")
+        normals = np.ascontiguousarray(s.normals)
+        s.record(lambda hole: dropout_inplace(z, s.valid, normals, s.rays_unit, s.ray_norm,
+                                              cos_min, r_max, hole), "dropout")
 
 
 class DisparityQuantisationStage(Stage[DisparityQuantisation], spec=DisparityQuantisation):

@@ -1,34 +1,33 @@
 #version 330 core
-// One RGBA32F target: r = planar depth in metres, g = the triangle's part label,
-// b = the person instance (0 = none), a = the scene class. Clear value 0 = no hit.
-// Labels come from a per-triangle texture indexed by gl_PrimitiveID, so they are never
-// interpolated or blended across a part boundary. For a person the texel is the body
-// part and the class is the uniform draw_class; for static geometry
+// Two targets. 0: r = planar depth in metres (R32F; RGBA32F with the camera-frame normal
+// in gba when WANT_NORMALS). 1: the pixel's ids packed as part label | instance << 8 |
+// scene class << 16, stored as a float (R32F; exact, as it is < 2^24). Clear value 0 =
+// no hit. Labels come from a per-triangle texture indexed by gl_PrimitiveID, so they are
+// never interpolated or blended across a part boundary. For a person the texel is the
+// body part and the class is the uniform draw_class; for static geometry
 // (labels_are_classes = 1) the texel is the triangle's scene class and the part is 0.
+// One packed channel instead of three float channels: fewer bytes written per fragment
+// and read back per frame, and no packing on the CPU.
 uniform usampler2D face_labels;  // R8UI, row-major, LABEL_TEX_WIDTH triangles per row
 uniform int labels_are_classes;
-uniform float instance_id;
-uniform float draw_class;
+uniform uint instance_id;
+uniform uint draw_class;
 
 in float v_depth;
 in vec3 v_cam;
-layout(location = 0) out vec4 out_depth_label;
-#ifdef WANT_NORMALS
-// flat face normal in the camera frame, turned to face the camera
-layout(location = 1) out vec4 out_normal;
-#endif
+layout(location = 0) out vec4 out_depth_normal;
+layout(location = 1) out float out_ids;
 
 void main() {
     int id = gl_PrimitiveID;
-    float t = float(texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH),
-                               0).r);
-    if (labels_are_classes != 0) {
-        out_depth_label = vec4(v_depth, 0.0, 0.0, t);
-    } else {
-        out_depth_label = vec4(v_depth, t, instance_id, draw_class);
-    }
+    uint t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).r;
+    uint ids = labels_are_classes != 0 ? t << 16u : t | (instance_id << 8u) | (draw_class << 16u);
+    out_ids = float(ids);
 #ifdef WANT_NORMALS
+    // flat face normal in the camera frame, turned to face the camera
     vec3 n = normalize(cross(dFdx(v_cam), dFdy(v_cam)));
-    out_normal = vec4(dot(n, v_cam) > 0.0 ? -n : n, 0.0);
+    out_depth_normal = vec4(v_depth, dot(n, v_cam) > 0.0 ? -n : n);
+#else
+    out_depth_normal = vec4(v_depth, 0.0, 0.0, 0.0);
 #endif
 }
