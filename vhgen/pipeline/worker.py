@@ -51,13 +51,17 @@ class FrameWorker:
             # a GPU worker opens the EGL device Ray gave it; otherwise the config's backend
             self.ctx = worker_context(cfg, os.environ.get("CUDA_VISIBLE_DEVICES")) \
                 or create_context(cfg.backend)
-            # load (or compile) the sensor's numba kernels now, not in the first frame
+            # load (or compile) the sensor's numba kernels now, not in the first frame:
+            # with arrays of the types and layouts the renderer hands over (a kernel is
+            # compiled per signature): float32 depth, uint32 packed ids, the normals a
+            # strided view of the depth+normal texels
             h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
-            normal = np.zeros((h, w, 3), np.float32)
-            normal[..., 2] = -1.0
+            texels = np.zeros((h, w, 4), np.float32)
+            texels[..., 0] = 2.0
+            texels[..., 3] = -1.0
             SensorModel(cfg.sensor).simulate(
-                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
-                labels=np.ones((h, w), np.uint8), normals=normal,
+                np.ascontiguousarray(texels[..., 0]), np.random.default_rng(0),
+                labels=np.ones((h, w), np.uint32), normals=texels[..., 1:],
                 projector_depth=np.full((h, w), 2.0, np.float32))
         except VhgenError as e:
             self.setup_error = e
