@@ -167,15 +167,21 @@ def main() -> None:
     print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
           f"instances, classes; zstd {cfg.compression_level})")
     if ratio is not None:
-        print(f"scene frame / person-only frame: {ratio[0]:.2f}x as configured, "
-              f"{ratio[1]:.2f}x with one person (target <= 1.3x)")
+        print(f"scene frame / person-only frame, end to end (shards written): {ratio[2]:.2f}x "
+              f"as configured, {ratio[3]:.2f}x with one person (target <= 1.3x); in memory "
+              f"(no write): {ratio[0]:.2f}x, {ratio[1]:.2f}x")
 
 
-def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, float]:
+def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, ...]:
     """Frames of the scene config timed interleaved with the person-only generator's
-    (same process, same machine state): rows for both and their ratios."""
+    (same process, same machine state): rows for both and their ratios, first for the
+    in-memory frame (describe, render, sensor, record), then end to end: whole shards
+    written to a store as a job's worker does (``run_task``: the frames, the Zarr shard and
+    its manifest part). Returns (in-memory as configured, in-memory one person, end to end
+    as configured, end to end one person)."""
     from vhgen.config import JobConfig
     from vhgen.pipeline.frames import local_generator
+    from vhgen.store.zarr_store import create_store
 
     full = JobConfig.load(scene_path, backend=backend)
     # the same room and props with exactly one person: what the scene itself costs
@@ -198,13 +204,40 @@ def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[floa
             out = g.render_frame(i % num_frames)
             t_scene[k] += time.perf_counter() - t
             people += out.record.num_people if k == 0 else 0
-    for g in gens:
-        g.close()
     n = len(frames)
     rows.append(("frame, person only (interleaved)", n, t_person))
     rows.append((f"frame, {full.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
     rows.append((f"frame, {full.name} with 1 person (interleaved)", n, t_scene[1]))
-    return t_scene[0] / t_person, t_scene[1] / t_person
+
+    # end to end: shards of the same size written by each generator, interleaved
+    all_gens = [gen, *gens]
+    k = min(g.cfg.frames_per_shard for g in all_gens)
+    shards = max(2, min(len(frames), min(len(g.describer.plan["seeds"]) for g in all_gens))
+                 // k)
+    t_e2e = [0.0, 0.0, 0.0]
+    with tempfile.TemporaryDirectory() as tmp:
+        stores = []
+        for j, g in enumerate(all_gens):
+            c = g.cfg
+            stores.append(str(Path(tmp) / f"s{j}.zarr"))
+            create_store(stores[-1], num_frames=shards * k, height=c.sensor.intrinsics.height,
+                         width=c.sensor.intrinsics.width, frames_per_shard=k,
+                         compression_level=c.compression_level, attrs={},
+                         raw11=c.sensor.encoding.raw11)
+        for sh in range(shards):
+            for j, g in enumerate(all_gens):
+                t = time.perf_counter()
+                g.run_task(stores[j], sh, sh * k, sh * k + k)
+                if sh > 0:  # shard 0: warm-up (zarr and pyarrow first use)
+                    t_e2e[j] += time.perf_counter() - t
+    for g in gens:
+        g.close()
+    m = (shards - 1) * k
+    rows.append(("end to end, person only (shards)", m, t_e2e[0]))
+    rows.append((f"end to end, {full.name} (shards)", m, t_e2e[1]))
+    rows.append((f"end to end, {full.name} with 1 person (shards)", m, t_e2e[2]))
+    return (t_scene[0] / t_person, t_scene[1] / t_person, t_e2e[1] / t_e2e[0],
+            t_e2e[2] / t_e2e[0])
 
 
 def fixed_cost(cfg, steps, executors=("local", "ray")) -> list[tuple[str, int, float]]:
