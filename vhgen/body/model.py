@@ -130,3 +130,10 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
         params["shape"] = shape.to_dict()
     return Body(vertices=verts, faces=faces, joints=joints, weights=weights,
                 face_labels=labels, rig=rig, scheme=scheme, params=params)
+
+
+def build_avatar(asset_dir: str | Path, scheme: LabelScheme, avatar: dict) -> Body:
+    """The shaped body of one avatar of a job's plan (``Plan.avatars[i]``: ``shape``,
+    ``scale``, ``clothing``): the one recipe the driver and the workers share."""
+    return build_body(Path(asset_dir), scheme, shape=Shape.from_dict(avatar["shape"]),
+                      scale=avatar["scale"], clothing=tuple(avatar["clothing"]))

@@ -8,8 +8,7 @@ import numpy as np
 
 from vhgen.body.kernels import skin_points
 from vhgen.body.labels import LabelScheme
-from vhgen.body.model import Body, build_body
-from vhgen.body.shape import Shape
+from vhgen.body.model import Body, build_avatar, build_body
 from vhgen.body.skinning import matrices_from_heads, posed_heads
 from vhgen.camera import look_at
 from vhgen.config import CameraConfig, JobConfig
@@ -66,12 +65,19 @@ def mounted_camera(eye: np.ndarray, pitch_deg: float, roll_deg: float) -> np.nda
     return rz @ w2c
 
 
+MAX_BODIES = 4  # CPU bodies a describer keeps
+
+
 class FrameDescriber:
     """Builds :class:`FrameDescription` s of one job. Holds the pose table, the plan and a
     cache of CPU bodies (one per avatar, built on first use)."""
 
     def __init__(self, cfg: JobConfig, asset_dir: str | Path, pose_rotations: np.ndarray,
-                 pose_roots: np.ndarray, plan_arrays: dict, avatars: list[dict]):
+                 pose_roots: np.ndarray, plan_arrays: dict, avatars: list[dict],
+                 bodies: dict[int, Body] | None = None, base_hip_drop: float | None = None):
+        """bodies : avatar id -> body already built (by the driver, while this worker set
+        up: :func:`build_avatar`, so the same body); base_hip_drop : the unshaped base
+        body's :attr:`~vhgen.body.model.Body.hip_drop` if known. Both only save work."""
         self.cfg = cfg
         self.asset_dir = Path(asset_dir)
         self.rotations = pose_rotations
@@ -79,20 +85,19 @@ class FrameDescriber:
         self.plan = plan_arrays
         self.avatars = avatars
         self.scheme = LabelScheme.load(cfg.labels)
-        self._bodies: dict[int, Body] = {}
+        self._bodies: dict[int, Body] = dict(list((bodies or {}).items())[:MAX_BODIES])
         # poses were retargeted onto the unshaped base body; an avatar's root height
         # scales with its hip height so its feet stay on the floor
-        self._base_hip_drop = build_body(self.asset_dir, self.scheme).hip_drop
+        self._base_hip_drop = base_hip_drop if base_hip_drop is not None else \
+            build_body(self.asset_dir, self.scheme).hip_drop
 
     def body(self, avatar_id: int) -> Body:
         """The avatar's shaped body (CPU), built once per describer."""
         if avatar_id not in self._bodies:
-            if len(self._bodies) >= 4:  # avatars come in runs (avatar-major plan)
+            if len(self._bodies) >= MAX_BODIES:  # avatars come in runs (avatar-major plan)
                 self._bodies.pop(next(iter(self._bodies)))
-            p = self.avatars[avatar_id]
-            self._bodies[avatar_id] = build_body(
-                self.asset_dir, self.scheme, shape=Shape.from_dict(p["shape"]),
-                scale=p["scale"], clothing=tuple(p["clothing"]))
+            self._bodies[avatar_id] = build_avatar(self.asset_dir, self.scheme,
+                                                   self.avatars[avatar_id])
         return self._bodies[avatar_id]
 
     def person(self, instance: int, avatar_id: int, pose: int, ground: bool = False,

@@ -32,7 +32,7 @@ import numpy as np
 from vhgen import __version__
 from vhgen.assets import resolve_asset_dir
 from vhgen.body.labels import LabelScheme
-from vhgen.body.model import build_body
+from vhgen.body.model import build_avatar, build_body
 from vhgen.config import JobConfig
 from vhgen.errors import StoreError, VhgenError
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
@@ -60,6 +60,8 @@ class _Prepared:
     rig_bones: list[str]
     poses: PoseSet
     plan: Plan
+    base_hip_drop: float
+    bodies: dict  # avatar id -> Body, the avatars of the first shards (workers start there)
 
 
 def _prepare(cfg: JobConfig, max_frames: int | None) -> _Prepared:
@@ -71,7 +73,12 @@ def _prepare(cfg: JobConfig, max_frames: int | None) -> _Prepared:
     plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
     if max_frames is not None and max_frames < plan.num_frames:
         plan = _truncate(plan, max_frames)
-    return _Prepared(asset_dir, scheme, list(base.rig.names), poses, plan)
+    # the driver is idle while the workers set up: it builds the bodies their first
+    # shards start with (a worker would spend about 0.25 s on its first one)
+    first = sorted({int(plan.avatar_id[t.start]) for t in plan.tasks[:cfg.num_workers]})
+    bodies = {a: build_avatar(asset_dir, scheme, plan.avatars[a]) for a in first[:4]}
+    return _Prepared(asset_dir, scheme, list(base.rig.names), poses, plan, base.hip_drop,
+                     bodies)
 
 
 def _truncate(plan: Plan, n: int) -> Plan:
@@ -232,7 +239,8 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
                        "seeds": plan.seeds}
         try:
             renderers = sorted(set(pool.load(poses.rotations, poses.roots, pose_meta,
-                                             plan_arrays, plan.avatars)))
+                                             plan_arrays, plan.avatars, p.bodies,
+                                             p.base_hip_drop)))
         except VhgenError as e:
             raise VhgenError(f"worker set-up: {e}") from None
         log.info("GL renderers: %s", renderers)
@@ -325,11 +333,11 @@ class _RayPool:
         return wid
 
     def load(self, rotations: Any, roots: Any, pose_meta: dict, plan_arrays: dict,
-             avatars: list) -> list[str]:
+             avatars: list, bodies: dict, base_hip_drop: float) -> list[str]:
         ray = self.ray
         # in the object store once; top-level refs reach every actor as (zero-copy) values
-        refs = [ray.put(x) for x in (rotations, roots, pose_meta, plan_arrays)]
-        self._load_args = (*refs, avatars)
+        refs = [ray.put(x) for x in (rotations, roots, pose_meta, plan_arrays, bodies)]
+        self._load_args = (*refs[:4], avatars, refs[4], base_hip_drop)
         try:
             return ray.get([a.load.remote(*self._load_args) for a in self.workers.values()])
         except ray.exceptions.RayTaskError as e:

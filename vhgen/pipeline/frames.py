@@ -56,7 +56,7 @@ class FrameGenerator:
 
     def __init__(self, cfg: JobConfig, asset_dir: str | Path, pose_rotations: np.ndarray,
                  pose_roots: np.ndarray, pose_meta: dict, plan_arrays: dict, avatars: list[dict],
-                 context=None):
+                 context=None, bodies: dict | None = None, base_hip_drop: float | None = None):
         from vhgen.render.context import create_context
         from vhgen.render.renderer import DepthLabelRenderer
         from vhgen.render.scene import SceneRenderer
@@ -64,7 +64,7 @@ class FrameGenerator:
         self.cfg = cfg
         self.pose_meta = pose_meta
         self.describer = FrameDescriber(cfg, asset_dir, pose_rotations, pose_roots,
-                                        plan_arrays, avatars)
+                                        plan_arrays, avatars, bodies, base_hip_drop)
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
         self.sensor = SensorModel(cfg.sensor)

@@ -67,14 +67,17 @@ class FrameWorker:
             self.setup_error = e
 
     def load(self, rotations: np.ndarray, roots: np.ndarray, pose_meta: dict,
-             plan_arrays: dict, avatars: list[dict]) -> str:
-        """Receive the poses and the plan; returns the GL renderer string."""
+             plan_arrays: dict, avatars: list[dict], bodies: dict | None = None,
+             base_hip_drop: float | None = None) -> str:
+        """Receive the poses and the plan (and the bodies the driver built for the first
+        shards); returns the GL renderer string."""
         from vhgen.pipeline.frames import FrameGenerator
 
         if self.setup_error is not None:
             raise self.setup_error
         self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
-                                  plan_arrays, avatars, context=self.ctx)
+                                  plan_arrays, avatars, context=self.ctx, bodies=bodies,
+                                  base_hip_drop=base_hip_drop)
         return str(self.gen.renderer_info)
 
     def run(self, store: str, shard: int, start: int, stop: int) -> dict:
