@@ -21,6 +21,7 @@ from typing import Any, NoReturn
 
 from vhgen import cliargs as A
 from vhgen.errors import ConfigError, VhgenError
+from vhgen.pipeline.resources import EXECUTORS
 
 
 class _Parser(argparse.ArgumentParser):
@@ -102,7 +103,7 @@ def _add_generate(sub: _Sub) -> None:
     g.add_argument("--num-workers", type=A.int_range(1, 4096),
                    help="frame workers (one GL context each)")
     g.add_argument("--backend", choices=["egl", "osmesa"], help="OpenGL backend")
-    g.add_argument("--executor", choices=["auto", "local", "ray"], default="auto",
+    g.add_argument("--executor", choices=EXECUTORS, default="auto",
                    help="where workers run: local processes, or Ray actors; auto (default): "
                    "Ray with --address / RAY_ADDRESS or GPU workers, else local")
     g.add_argument("--address", type=A.text("address"),

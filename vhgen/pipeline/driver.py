@@ -47,6 +47,7 @@ from vhgen.store.zarr_store import clean_partials, completed_shards, create_stor
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3  # retries of one shard after its worker died
+PREBUILT_BODIES = 2  # avatar bodies the driver builds for the workers' first shards
 _RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor",
                 "class_names")
 
@@ -74,9 +75,11 @@ def _prepare(cfg: JobConfig, max_frames: int | None) -> _Prepared:
     if max_frames is not None and max_frames < plan.num_frames:
         plan = _truncate(plan, max_frames)
     # the driver is idle while the workers set up: it builds the bodies their first
-    # shards start with (a worker would spend about 0.25 s on its first one)
+    # shards start with (a worker would spend about 0.25 s on its first one); a few only,
+    # so that a wide cluster job does not wait on the driver building bodies in series
     first = sorted({int(plan.avatar_id[t.start]) for t in plan.tasks[:cfg.num_workers]})
-    bodies = {a: build_avatar(asset_dir, scheme, plan.avatars[a]) for a in first[:4]}
+    bodies = {a: build_avatar(asset_dir, scheme, plan.avatars[a])
+              for a in first[:PREBUILT_BODIES]}
     return _Prepared(asset_dir, scheme, list(base.rig.names), poses, plan, base.hip_drop,
                      bodies)
 
