@@ -116,6 +116,7 @@ class LocalPool:
         self.asset_dir = asset_dir
         self.faults = faults
         self.workers: dict[int, _Worker] = {}
+        self._retired: list[_Worker] = []  # told to stop, not reaped yet
         self._next_id = 0
         self._load_args: tuple | None = None
 
@@ -159,15 +160,13 @@ class LocalPool:
         return str(value)
 
     def stop(self, wids: list[int]) -> None:
-        """Stop these workers (e.g. more workers than tasks)."""
+        """Stop these workers (e.g. more workers than tasks), without waiting: a worker
+        still setting up reads the request after its set-up; close() reaps it."""
         for wid in wids:
             w = self.workers.pop(wid)
-            try:
-                w.conn.send(("stop", ()))
-            except OSError:
-                pass
-            _end(w.process, _STOP_SECONDS)
-            w.conn.close()
+            self._send(w, "stop", ())
+            w.stopping = True
+            self._retired.append(w)
 
     def release(self) -> None:
         """Tell every idle worker to stop, without waiting (close() reaps them)."""
@@ -179,11 +178,12 @@ class LocalPool:
     def close(self) -> None:
         """Stop every worker; the ones that do not stop in time are terminated."""
         self.release()
-        for w in self.workers.values():
+        for w in [*self.workers.values(), *self._retired]:
             # a worker still busy (an error stopped the job) is not waited for
             _end(w.process, _STOP_SECONDS if w.busy is None else 0.0)
             w.conn.close()
         self.workers.clear()
+        self._retired.clear()
 
     def replace(self, wid: int) -> int:
         """A new, loaded worker in place of the dead one ``wid``; returns its id."""
