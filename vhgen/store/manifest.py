@@ -70,7 +70,7 @@ class ManifestMerger:
         path = self.store / MANIFEST_PARTS / f"part-{shard:06d}.parquet"
         try:
             self.tables[shard] = pq.read_table(path)
-        except (OSError, pa.ArrowException):
+        except (OSError, pa.ArrowInvalid):  # unreadable or truncated: finish() says so
             self.tables.pop(shard, None)
 
     def finish(self, num_frames: int) -> Path:
