@@ -21,6 +21,8 @@ import errno
 import json
 import logging
 import os
+import signal
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -48,6 +50,7 @@ log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3  # retries of one shard after its worker died
 PREBUILT_BODIES = 2  # avatar bodies the driver builds for the workers' first shards
+_POLL_SECONDS = 0.5  # the dispatch loop wakes at least this often (see _CtrlC)
 _RESUME_KEYS = ("seed", "num_frames", "frames_per_shard", "label_names", "sensor",
                 "class_names")
 
@@ -374,11 +377,11 @@ class _RayPool:
     def submit(self, wid: int, task: Any, *args: Any) -> None:
         self.pending[self.workers[wid].run.remote(*args)] = (wid, task)
 
-    def wait(self) -> list[tuple[int, Any, str, Any]]:
+    def wait(self, timeout: float | None = None) -> list[tuple[int, Any, str, Any]]:
         ray = self.ray
         if not self.pending:
             return []
-        ready, _ = ray.wait(list(self.pending), num_returns=1)
+        ready, _ = ray.wait(list(self.pending), num_returns=1, timeout=timeout)
         out = []
         for ref in ready:
             wid, task = self.pending.pop(ref)
@@ -456,6 +459,40 @@ def _short(v: Any) -> str:
     return s if len(s) <= 40 else s[:37] + "..."
 
 
+class _CtrlC:
+    """Ctrl-C during the dispatch, noticed within :data:`_POLL_SECONDS` however it lands.
+
+    Python runs signal handlers in the main thread only, between bytecodes: a SIGINT that
+    the kernel hands to another thread (pyarrow's, zarr's) leaves the main thread asleep
+    in its wait, and a KeyboardInterrupt raised inside a finaliser or callback is printed
+    and dropped. The handler here also records the interrupt, and the dispatch loop,
+    which wakes at least every :data:`_POLL_SECONDS`, raises it again if it was lost.
+    Installed only over Python's own handler, from the main thread (elsewhere, or when
+    SIGINT is ignored or handled by the caller, a no-op)."""
+
+    def __init__(self) -> None:
+        self.hit = False
+        self.previous: Any = None
+
+    def __enter__(self) -> _CtrlC:
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        self.hit = True
+        raise KeyboardInterrupt
+
+    def check(self) -> None:
+        if self.hit:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc: object) -> None:
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+
+
 def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestMerger
               ) -> tuple[list[dict], dict[int, int], float | None]:
     """Run every task on the pool's workers (one in flight per worker), handing each
@@ -480,40 +517,43 @@ def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestM
             in_flight += 1
 
     fill()
-    while in_flight:
-        finished = []
-        for wid, task, kind, value in pool.wait():
-            in_flight -= 1
-            if kind == "ok":
-                results.append(value)
-                idle.append(wid)
-                finished.append(task.shard)
-                bar.update(task.stop - task.start)
-                first_frame = first_frame or time.perf_counter()
-            elif kind == "died":
-                # frames are deterministic: redoing the whole shard duplicates nothing
-                if attempts[task.shard] > MAX_ATTEMPTS:
-                    error = error or VhgenError(
-                        f"shard {task.shard} (frames {task.start}-{task.stop}): worker died "
-                        f"{MAX_ATTEMPTS + 1} times; rerun with --resume")
-                    continue
-                log.warning("worker died on shard %d (attempt %d), retrying on a new worker",
-                            task.shard, attempts[task.shard])
-                queue.insert(0, task)
-                idle.append(pool.replace(wid))
-            else:
-                idle.append(wid)
-                if isinstance(value, OSError):
-                    err: VhgenError = StoreError(_os_error_line(
-                        value, out, f"cannot write shard {task.shard}"))
-                elif isinstance(value, VhgenError):
-                    err = VhgenError(f"shard {task.shard}: {value}")
+    with _CtrlC() as ctrl_c:
+        while in_flight:
+            finished = []
+            done = pool.wait(timeout=_POLL_SECONDS)
+            ctrl_c.check()
+            for wid, task, kind, value in done:
+                in_flight -= 1
+                if kind == "ok":
+                    results.append(value)
+                    idle.append(wid)
+                    finished.append(task.shard)
+                    bar.update(task.stop - task.start)
+                    first_frame = first_frame or time.perf_counter()
+                elif kind == "died":
+                    # frames are deterministic: redoing the whole shard duplicates nothing
+                    if attempts[task.shard] > MAX_ATTEMPTS:
+                        error = error or VhgenError(
+                            f"shard {task.shard} (frames {task.start}-{task.stop}): worker died "
+                            f"{MAX_ATTEMPTS + 1} times; rerun with --resume")
+                        continue
+                    log.warning("worker died on shard %d (attempt %d), retrying on a new worker",
+                                task.shard, attempts[task.shard])
+                    queue.insert(0, task)
+                    idle.append(pool.replace(wid))
                 else:
-                    raise value  # a bug: keep the worker's traceback
-                error = error or err
-        fill()  # the workers first, then the driver's own reading
-        for shard in finished:
-            merger.add(shard)
+                    idle.append(wid)
+                    if isinstance(value, OSError):
+                        err: VhgenError = StoreError(_os_error_line(
+                            value, out, f"cannot write shard {task.shard}"))
+                    elif isinstance(value, VhgenError):
+                        err = VhgenError(f"shard {task.shard}: {value}")
+                    else:
+                        raise value  # a bug: keep the worker's traceback
+                    error = error or err
+            fill()  # the workers first, then the driver's own reading
+            for shard in finished:
+                merger.add(shard)
     if error is not None:
         raise error
     return results, attempts, first_frame

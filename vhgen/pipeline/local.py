@@ -203,17 +203,17 @@ class LocalPool:
         w.busy = task
         self._send(w, "run", args)
 
-    def wait(self) -> list[tuple[int, Any, str, Any]]:
-        """Block until at least one busy worker answers or dies. Returns
-        ``(worker id, task, kind, value)`` with kind ``ok`` (value: the result),
-        ``died`` (value: the exit code) or ``error`` (value: the exception, its
-        ``__cause__`` the worker's traceback)."""
+    def wait(self, timeout: float | None = None) -> list[tuple[int, Any, str, Any]]:
+        """Block until at least one busy worker answers or dies, or ``timeout`` seconds
+        pass (then: an empty list). Returns ``(worker id, task, kind, value)`` with kind
+        ``ok`` (value: the result), ``died`` (value: the exit code) or ``error`` (value:
+        the exception, its ``__cause__`` the worker's traceback)."""
         busy = {wid: w for wid, w in self.workers.items() if w.busy is not None}
         if not busy:
             return []
         # a dead worker's socket reads as end-of-file: readable, like a reply
         handles = {w.conn: wid for wid, w in busy.items()}
-        ready = {handles[h] for h in wait(list(handles))}  # type: ignore[index]
+        ready = {handles[h] for h in wait(list(handles), timeout)}  # type: ignore[index]
         out = []
         for wid in sorted(ready):
             w = self.workers[wid]
