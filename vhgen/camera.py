@@ -33,7 +33,8 @@ class Intrinsics:
 
         Maps pixel centres exactly: GL window x = u + 0.5 and window y = v + 0.5, so the
         framebuffer read back from row 0 upward *is* the image with row 0 on top.
-        (The flip reverses triangle winding; we do not cull faces.)
+        (The flip reverses triangle winding, which back-face culling accounts for: see
+        ``DepthLabelRenderer._cull_ranges``.)
         """
         w, h = self.width, self.height
         return np.array([

@@ -43,6 +43,19 @@ INSTANCE_COLORS = np.array([[0, 0, 0], [230, 25, 75], [60, 180, 75], [0, 130, 20
                            np.uint8)
 
 
+def class_palette(num_classes: int) -> np.ndarray:
+    """(max(num_classes, 8), 3) uint8 colours of scene classes: the shipped classes keep
+    CLASS_COLORS; user classes beyond get hues spaced by the golden angle (distinct,
+    deterministic), so each declared class has its own colour."""
+    n = max(int(num_classes), len(CLASS_COLORS))
+    extra = np.arange(len(CLASS_COLORS), n)
+    hue = (extra * 0.6180339887498949) % 1.0
+    # HSV -> RGB at s = 0.75, v = 0.9
+    k = (hue[:, None] * 6 + np.array([5.0, 3.0, 1.0])) % 6
+    rgb = 0.9 - 0.9 * 0.75 * np.clip(np.minimum(k, 4 - k), 0, 1)
+    return np.vstack([CLASS_COLORS, (rgb * 255).round().astype(np.uint8)])
+
+
 def _scene_tiles(root, frames: list[int]) -> bool:
     """Whether to show the instance and class images: the store has them and the frames
     shown have more than one person or anything besides people."""
@@ -75,11 +88,13 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
     h, w = depth.shape[1:]
     th, tw = int(h * scale), int(w * scale)
     scene = _scene_tiles(root, frames)
+    class_names = list(root.attrs.get("class_names", []))
+    class_colors = class_palette(len(class_names))
     cols = 4 if scene else 2
     rows = len(frames)
     legend_w = 190
-    sheet = Image.new("RGB", (cols * tw + legend_w,
-                              max(rows * (th + 16), 14 * len(names) + 40 + (110 if scene else 0))),
+    legend_h = 14 * len(names) + 40 + (14 * len(class_names) + 30 if scene else 0)
+    sheet = Image.new("RGB", (cols * tw + legend_w, max(rows * (th + 16), legend_h)),
                       (255, 255, 255))
     draw = ImageDraw.Draw(sheet)
     font = ImageFont.load_default()
@@ -92,7 +107,7 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
             inst = np.asarray(root["instances"][f])
             cls = np.asarray(root["classes"][f])
             tiles += [INSTANCE_COLORS[np.where(inst == 0, 0, (inst - 1) % 7 + 1)],
-                      CLASS_COLORS[np.minimum(cls, len(CLASS_COLORS) - 1)]]
+                      class_colors[np.minimum(cls, len(class_colors) - 1)]]
             titles += ["instances", "classes"]
         y = r * (th + 16)
         for c, title in enumerate(titles):
@@ -109,10 +124,10 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
     if scene:
         y = 20 + len(names) * 14 + 10
         draw.text((x0, y), "classes", fill=(0, 0, 0), font=font)
-        for k, name in enumerate(root.attrs.get("class_names", [])[1:len(CLASS_COLORS)], 1):
+        for k, name in enumerate(class_names[1:], 1):
             yy = y + 16 + (k - 1) * 14
             draw.rectangle([x0, yy, x0 + 12, yy + 10], fill=tuple(int(c) for c in
-                                                                 CLASS_COLORS[k]))
+                                                                 class_colors[k]))
             draw.text((x0 + 18, yy - 1), name, fill=(0, 0, 0), font=font)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -131,3 +131,13 @@ def test_user_class_ids_exactly_where_those_props_are_seen(tmp_path, shared_moca
     assert main(["inspect", str(tmp_path / "a.zarr")]) == 0
     ds = vhgen.dataset.open(tmp_path / "a.zarr")
     np.testing.assert_array_equal(ds[len(ds) - 1]["classes"], ca[len(ds) - 1])
+
+
+def test_preview_gives_every_declared_class_its_own_colour():
+    from vhgen.preview import CLASS_COLORS, class_palette
+
+    pal = class_palette(256)
+    assert pal.shape == (256, 3) and pal.dtype == np.uint8
+    np.testing.assert_array_equal(pal[:len(CLASS_COLORS)], CLASS_COLORS)
+    assert len({tuple(c) for c in pal[:40]}) == 40  # user classes distinct from each other
+    assert class_palette(3).shape == (len(CLASS_COLORS), 3)

@@ -6,7 +6,7 @@ import pytest
 from vhgen.body.skinning import bone_matrices, skin_vertices
 from vhgen.camera import Intrinsics, backproject, pixel_rays
 from vhgen.errors import RenderError
-from vhgen.render.renderer import DepthLabelRenderer
+from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh
 from vhgen.rotations import axis_rotation, rigid
 
 INTR = Intrinsics(160, 120, 150.0, 150.0, 79.5, 59.5)
@@ -129,3 +129,43 @@ def test_renderers_can_be_released_and_recreated(gl_ctx):
         assert depth[59, 79] == pytest.approx(2.0)
         np.testing.assert_allclose(ren.normals[59, 79], [0, 0, -1], atol=1e-6)
         ren.release()
+
+
+@pytest.mark.parametrize("wound", ["outward", "inward"])
+def test_back_face_culling_changes_no_pixel(gl_ctx, wound):
+    """A closed sphere (either winding) and an open shell in front of it, every triangle
+    its own label: culled and unculled renders are identical (so the culled side is the far
+    one and the labels of every run of triangles are looked up at the right offset);
+    culling the near side instead would change them (culling really happens)."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    f = np.asarray(s.faces)
+    f = f if wound == "outward" else f[:, ::-1]
+    shell = trimesh.creation.icosphere(subdivisions=2, radius=0.3)
+    keep = shell.vertices[shell.faces].mean(axis=1)[:, 2] < -0.1  # an open cap
+    v = np.vstack([s.vertices + [0.1, 0.0, 3.0], shell.vertices + [-0.1, 0.0, 2.3]])
+    faces = np.vstack([f, shell.faces[keep] + len(s.vertices)])
+    labels = (np.arange(len(faces)) % 250 + 1).astype(np.uint8)
+    n = len(v)
+    args = (np.zeros((n, 4), int), np.tile([1.0, 0, 0, 0], (n, 1)), labels, 1)
+    ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+    views = []
+    for cull in (True, False):
+        mesh = ren.upload(v, faces, *args, cull=cull)
+        views.append(ren.draw([Draw(mesh, np.eye(4)[None])]))
+        if cull:
+            assert [r[2] is not None for r in mesh.ranges] == [True, False]
+            wrong = GpuMesh(mesh.vao, [], mesh.label_tex, False,
+                            tuple((a, b, {"front": "back", "back": "front"}.get(c))
+                                  for a, b, c in mesh.ranges))
+            bad = ren.draw([Draw(wrong, np.eye(4)[None])])
+        mesh.release()
+    ren.release()
+    culled, full = views
+    assert (full.depth > 0).sum() > 2000
+    np.testing.assert_array_equal(culled.ids, full.ids)
+    np.testing.assert_array_equal(culled.depth, full.depth)
+    np.testing.assert_array_equal(culled.normals, full.normals)
+    sphere = (full.labels > 0) & (culled.depth > 2.8)
+    assert (bad.depth[sphere] > full.depth[sphere] + 1e-3).mean() > 0.95

@@ -18,6 +18,7 @@ from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
 from vhgen.scene.geometry import id_bytes
+from vhgen.scene.topology import INWARD, OUTWARD, closed_sides
 
 LABEL_TEX_WIDTH = 4096
 
@@ -75,12 +76,15 @@ class GpuMesh:
     """A mesh resident on the GPU: its vertex array, buffers and per-triangle label texture.
 
     ``static`` meshes carry scene classes in the texture and are drawn with one rigid
-    transform; skinned meshes carry body-part labels."""
+    transform; skinned meshes carry body-part labels. ``ranges`` are the runs of
+    triangles drawn with one culling state: (first triangle, count, face culled or None).
+    """
 
     vao: Any
     objects: list
     label_tex: Any
     static: bool
+    ranges: tuple[tuple[int, int, str | None], ...] = ()
 
     def release(self) -> None:
         for obj in self.objects:
@@ -176,11 +180,41 @@ class DepthLabelRenderer:
         self.program["projection"].write(self.projection.T.astype("f4").tobytes())
         self.num_bones = num_bones
 
+    def _cull_ranges(self, vertices, faces, labels, cull: bool
+                     ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, int, str | None], ...]]:
+        """Faces and labels reordered (stably) so that triangles of closed surfaces come
+        first, and the runs to draw: the closed ones with the side facing away from the
+        camera culled (see :mod:`vhgen.scene.topology`), open ones with nothing culled.
+        Culling halves the triangles a body sends to rasterisation (llvmpipe spends most
+        of a person's draw there) and changes no pixel: a closed surface's far side is
+        always behind its near side. The projection does not flip y, so a triangle wound
+        counter-clockwise seen from outside appears clockwise on screen when it faces the
+        camera: GL's "back"; the far side is GL's "front"."""
+        faces = np.asarray(faces)
+        if not cull or len(faces) == 0:
+            return faces, labels, ((0, len(faces), None),)
+        p = self.projection
+        far_side_of_outward = "front" if p[0, 0] * p[1, 1] > 0 else "back"
+        near_side = {"front": "back", "back": "front"}[far_side_of_outward]
+        side = closed_sides(vertices, faces)
+        rank = np.where(side == OUTWARD, 0, np.where(side == INWARD, 1, 2))
+        order = np.argsort(rank, kind="stable")
+        counts = np.bincount(rank, minlength=3)
+        modes = (far_side_of_outward, near_side, None)
+        ranges, start = [], 0
+        for k in range(3):
+            if counts[k]:
+                ranges.append((start, int(counts[k]), modes[k]))
+                start += int(counts[k])
+        return faces[order], labels[order], tuple(ranges)
+
     def upload(self, vertices, faces, joints, weights, face_labels, num_bones: int,
-               static: bool = False) -> GpuMesh:
+               static: bool = False, cull: bool = True) -> GpuMesh:
         """Put a mesh on the GPU: vertices (V,3), faces (T,3), joints (V,4) int, weights
         (V,4), face_labels (T,) uint8 (body parts, or scene classes when ``static``), for a
-        rig of ``num_bones`` bones. All meshes of one renderer share the rig size."""
+        rig of ``num_bones`` bones. All meshes of one renderer share the rig size.
+        ``cull``: the far side of closed surfaces is culled (open ones never are; skinning
+        is rigid per bone, so a closed surface stays closed and keeps its facing)."""
         import moderngl
 
         joints = np.asarray(joints)
@@ -190,6 +224,8 @@ class DepthLabelRenderer:
         if joints.max() >= num_bones or joints.min() < 0:
             raise RenderError("joint index out of range of the bone array")
         self._compile(int(num_bones))
+        labels = np.asarray(face_labels, dtype=np.uint8)
+        faces, labels, ranges = self._cull_ranges(vertices, faces, labels, cull)
         ctx = self.ctx
         vbo_pos = ctx.buffer(np.ascontiguousarray(vertices, dtype="f4").tobytes())
         vbo_joints = ctx.buffer(np.ascontiguousarray(joints, dtype="i4").tobytes())
@@ -200,14 +236,13 @@ class DepthLabelRenderer:
             (vbo_joints, "4i", "in_joints"),
             (vbo_weights, "4f", "in_weights"),
         ], index_buffer=ibo, index_element_size=4)
-        labels = np.asarray(face_labels, dtype=np.uint8)
         rows = -(-len(labels) // LABEL_TEX_WIDTH)
         padded = np.zeros(rows * LABEL_TEX_WIDTH, dtype=np.uint8)
         padded[:len(labels)] = labels
         label_tex = ctx.texture((LABEL_TEX_WIDTH, rows), 1, padded.tobytes(), dtype="u1")
         label_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         mesh = GpuMesh(vao, [vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex],
-                       label_tex, static)
+                       label_tex, static, ranges)
         self._check("uploading the mesh")
         return mesh
 
@@ -216,9 +251,10 @@ class DepthLabelRenderer:
         if self.program is None:
             raise RenderError("upload a skinned mesh first (it fixes the rig size)")
         n = len(vertices)
+        # not culled: a few hundred triangles, rebuilt every frame, mostly open (walls)
         return self.upload(vertices, faces, np.zeros((n, 4), np.int32),
                            np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (n, 1)),
-                           face_classes, self.num_bones, static=True)
+                           face_classes, self.num_bones, static=True, cull=False)
 
     def set_mesh(self, vertices, faces, joints, weights, face_labels, num_bones: int) -> None:
         """Upload the one mesh :meth:`render` draws (replacing the previous one)."""
@@ -240,8 +276,10 @@ class DepthLabelRenderer:
             raise RenderError("draw() before any mesh was uploaded")
         self.fbo.use()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        culling = False
         for d in draws:
             m = np.asarray(d.bones, dtype=np.float64)
             if d.mesh.static:
@@ -256,7 +294,17 @@ class DepthLabelRenderer:
             self.program["instance_id"].value = int(d.instance)
             self.program["draw_class"].value = int(d.draw_class)
             d.mesh.label_tex.use(0)
-            d.mesh.vao.render(moderngl.TRIANGLES)
+            for first, count, culled in d.mesh.ranges:
+                if culled is not None:
+                    ctx.cull_face = culled
+                if (culled is not None) != culling:
+                    culling = culled is not None
+                    (ctx.enable if culling else ctx.disable)(moderngl.CULL_FACE)
+                # gl_PrimitiveID restarts at 0 in every draw call
+                self.program["prim_offset"].value = first
+                d.mesh.vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
+        if culling:
+            ctx.disable(moderngl.CULL_FACE)
         h, w = self.intr.height, self.intr.width
         k = self._depth_components
         out = np.empty((h, w, k) if k > 1 else (h, w), dtype=np.float32)

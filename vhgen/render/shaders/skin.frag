@@ -2,7 +2,8 @@
 // Two targets. 0: r = planar depth in metres (R32F; RGBA32F with the camera-frame normal
 // in gba when WANT_NORMALS). 1: the pixel's ids packed as part label | instance << 8 |
 // scene class << 16, stored as a float (R32F; exact, as it is < 2^24). Clear value 0 =
-// no hit. Labels come from a per-triangle texture indexed by gl_PrimitiveID, so they are
+// no hit. Labels come from a per-triangle texture indexed by gl_PrimitiveID (+ the
+// draw's first triangle: a mesh may be drawn in runs with different culling), so they are
 // never interpolated or blended across a part boundary. For a person the texel is the
 // body part and the class is the uniform draw_class; for static geometry
 // (labels_are_classes = 1) the texel is the triangle's scene class and the part is 0.
@@ -12,6 +13,7 @@ uniform usampler2D face_labels;  // R8UI, row-major, LABEL_TEX_WIDTH triangles p
 uniform int labels_are_classes;
 uniform uint instance_id;
 uniform uint draw_class;
+uniform int prim_offset;  // first triangle of this draw call in the label texture
 
 in float v_depth;
 in vec3 v_cam;
@@ -19,7 +21,7 @@ layout(location = 0) out vec4 out_depth_normal;
 layout(location = 1) out float out_ids;
 
 void main() {
-    int id = gl_PrimitiveID;
+    int id = gl_PrimitiveID + prim_offset;
     uint t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).r;
     uint ids = labels_are_classes != 0 ? t << 16u : t | (instance_id << 8u) | (draw_class << 16u);
     out_ids = float(ids);
