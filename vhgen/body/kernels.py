@@ -45,3 +45,33 @@ def skin_points(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
     _lbs(v, np.ascontiguousarray(joints, dtype=np.int64),
          np.ascontiguousarray(weights, dtype=np.float64), m, out)
     return out
+
+
+@numba.njit(cache=True)
+def _footprint(points):
+    lo_y = np.inf
+    x0 = z0 = np.inf
+    x1 = z1 = -np.inf
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        lo_y = min(lo_y, y)
+        x0 = min(x0, x)
+        x1 = max(x1, x)
+        z0 = min(z0, z)
+        z1 = max(z1, z)
+    cx, cz = (x0 + x1) / 2, (z0 + z1) / 2
+    r2 = 0.0
+    for i in range(points.shape[0]):
+        dx, dz = points[i, 0] - cx, points[i, 2] - cz
+        r2 = max(r2, dx * dx + dz * dz)
+    return lo_y, cx, cz, np.sqrt(r2)
+
+
+def footprint(points: np.ndarray) -> tuple[float, float, float, float]:
+    """Of (V, 3) float64 points (y up): the lowest y, and the circle about the centre of
+    their x/z bounding box that holds them all: (lowest_y, centre_x, centre_z, radius)."""
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    if len(p) == 0:
+        raise ValueError("footprint of no points")
+    lo, cx, cz, r = _footprint(p)
+    return float(lo), float(cx), float(cz), float(r)

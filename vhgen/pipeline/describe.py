@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vhgen.body.kernels import footprint as floor_footprint
 from vhgen.body.kernels import skin_points
 from vhgen.body.labels import LabelScheme
 from vhgen.body.model import Body, build_avatar, build_body
@@ -118,15 +119,13 @@ class FrameDescriber:
         mats = matrices_from_heads(body.rig, rot, heads)
         if ground or footprint:
             verts = skin_points(body.vertices, body.joints, body.weights, mats)
-            lowest = verts[:, 1].min()
+            lowest, cx, cz, radius = floor_footprint(verts)
             if ground and lowest < FLOOR_SNAP_M:
                 offset[1] = -lowest
                 # moved: posed again from the new root (the same sums as a fresh pose)
                 heads = posed_heads(body.rig, rot, root + offset)
                 mats = matrices_from_heads(body.rig, rot, heads)
-            xz = verts[:, [0, 2]]
-            c = (xz.min(0) + xz.max(0)) / 2
-            disc = Disc(float(c[0]), float(c[1]), float(np.hypot(*(xz - c).T).max()))
+            disc = Disc(cx, cz, radius)
         return Person(instance, avatar_id, pose, mats, heads, offset, footprint=disc)
 
     def describe(self, frame: int) -> FrameDescription:
