@@ -140,3 +140,32 @@ def test_packed_ids_are_exact_up_to_255(gl_ctx, normals):
         assert view.normals is not None and view.normals.shape == (INTR.height, INTR.width, 3)
         np.testing.assert_allclose(view.normals[up], np.tile([0.0, 0.0, -1.0], (up.sum(), 1)),
                                    atol=1e-5)
+
+
+def test_static_geometry_written_into_reused_buffers_draws_as_uploaded(gl_ctx):
+    """Frames with more, fewer, then more static triangles (the reused buffers grow):
+    each draws exactly as a freshly uploaded mesh of the same geometry."""
+    ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+    b = _Quad(-1, 1, -1, 1, 9)
+    person = ren.upload(b.vertices, b.faces, b.joints, b.weights, b.face_labels, 1)
+    rng = np.random.default_rng(3)
+    for n in (3, 1, 300, 40):
+        quads = [quad(np.array([[x, -1.0, z], [x + 0.3, -1.0, z], [x + 0.3, 1.0, z + 0.2],
+                                [x, 1.0, z + 0.2]]), int(c), "q")
+                 for x, z, c in zip(rng.uniform(-1.5, 1.2, n), rng.uniform(2, 6, n),
+                                    rng.integers(1, 4, n), strict=True)]
+        v = np.concatenate([q.vertices for q in quads])
+        f = np.concatenate([q.faces + 4 * k for k, q in enumerate(quads)])
+        c = np.concatenate([q.face_classes for q in quads])
+        reused = ren.draw([Draw(person, np.eye(4)[None]), Draw(ren.write_static(v, f, c),
+                                                                np.eye(4))])
+        fresh_mesh = ren.upload_static(v, f, c)
+        fresh = ren.draw([Draw(person, np.eye(4)[None]), Draw(fresh_mesh, np.eye(4))])
+        fresh_mesh.release()
+        np.testing.assert_array_equal(reused.ids, fresh.ids)
+        np.testing.assert_array_equal(reused.depth, fresh.depth)
+        assert (reused.classes > 0).sum() > 100
+    with pytest.raises(RenderError, match="out of range"):
+        ren.write_static(np.zeros((3, 3)), np.array([[0, 1, 3]]), np.zeros(1, np.uint8))
+    person.release()
+    ren.release()

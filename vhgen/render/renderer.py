@@ -165,6 +165,7 @@ class DepthLabelRenderer:
         self.program: Any = None
         self.num_bones = 0
         self._single: GpuMesh | None = None
+        self._static: tuple[GpuMesh, int, int] | None = None  # (mesh, vertices, triangles)
 
     def _compile(self, num_bones: int) -> None:
         if self.program is not None and num_bones == self.num_bones:
@@ -256,6 +257,43 @@ class DepthLabelRenderer:
                            np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (n, 1)),
                            face_classes, self.num_bones, static=True, cull=False)
 
+    def write_static(self, vertices, faces, face_classes) -> GpuMesh:
+        """Like :meth:`upload_static`, into buffers this renderer keeps and reuses (grown
+        when a frame needs more): for the per-frame static geometry, whose GL objects cost
+        more to create and release every frame than to overwrite. The mesh stays owned by
+        the renderer and is valid until the next call (never release it)."""
+        import moderngl
+
+        if self.program is None:
+            raise RenderError("upload a skinned mesh first (it fixes the rig size)")
+        v = np.ascontiguousarray(vertices, dtype="f4")
+        f = np.ascontiguousarray(faces, dtype="u4")
+        labels = np.asarray(face_classes, dtype=np.uint8)
+        if len(f) and int(f.max()) >= len(v):
+            raise RenderError("static face index out of range of the vertices")
+        slot = self._static
+        if slot is None or len(v) > slot[1] or len(f) > slot[2]:
+            if slot is not None:
+                slot[0].release()
+            cap_v = max(256, 1 << (max(len(v), 1) - 1).bit_length())
+            cap_t = max(256, 1 << (max(len(f), 1) - 1).bit_length())
+            mesh = self.upload(np.zeros((cap_v, 3)), np.zeros((cap_t, 3), np.int64),
+                               np.zeros((cap_v, 4), np.int32),
+                               np.tile(np.array([1.0, 0, 0, 0], np.float32), (cap_v, 1)),
+                               np.zeros(cap_t, np.uint8), self.num_bones, static=True,
+                               cull=False)
+            slot = self._static = (mesh, cap_v, cap_t)
+        mesh = slot[0]
+        vbo_pos, ibo = mesh.objects[2], mesh.objects[1]
+        vbo_pos.write(v.tobytes())
+        ibo.write(f.tobytes())
+        padded = np.zeros(mesh.label_tex.width * mesh.label_tex.height, np.uint8)
+        padded[:len(labels)] = labels
+        mesh.label_tex.write(padded.tobytes())
+        mesh.label_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._check("writing the static geometry")
+        return GpuMesh(mesh.vao, [], mesh.label_tex, True, ((0, len(f), None),))
+
     def set_mesh(self, vertices, faces, joints, weights, face_labels, num_bones: int) -> None:
         """Upload the one mesh :meth:`render` draws (replacing the previous one)."""
         if self._single is not None:
@@ -340,6 +378,9 @@ class DepthLabelRenderer:
         if self._single is not None:
             self._single.release()
             self._single = None
+        if self._static is not None:
+            self._static[0].release()
+            self._static = None
         for obj in (self.program, self.fbo, self.color, self.ids_tex, self.depth):
             if obj is not None:
                 obj.release()

@@ -72,25 +72,21 @@ class SceneRenderer:
         depth of the same scene."""
         people = [(self._mesh(p.avatar_id), p) for p in desc.people]
         # all static geometry as one mesh, one draw: the same triangles in the same order
-        # (so the same depth-test outcome) for a fraction of the GL objects and calls
+        # (so the same depth-test outcome) for a fraction of the GL objects and calls, in
+        # buffers the renderer reuses from frame to frame
         static = []
         if desc.static:
-            v, f, c = merge_static(desc.static)
-            static.append(self.renderer.upload_static(v, f, c))
-        try:
-            def draws(w2v: np.ndarray) -> list[Draw]:
-                return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]
-                        + [Draw(m, w2v) for m in static])
+            static.append(self.renderer.write_static(*merge_static(desc.static)))
 
-            w2c = desc.camera.world_to_camera
-            cam = self.renderer.draw(draws(w2c))
-            proj = None
-            if projector_baseline_m is not None:
-                proj = self.renderer.draw(draws(world_to_projector(
-                    w2c, projector_baseline_m))).depth
-        finally:
-            for m in static:
-                m.release()
+        def draws(w2v: np.ndarray) -> list[Draw]:
+            return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]
+                    + [Draw(m, w2v) for m in static])
+
+        w2c = desc.camera.world_to_camera
+        cam = self.renderer.draw(draws(w2c))
+        proj = None
+        if projector_baseline_m is not None:
+            proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
         return SceneViews(cam, proj)
 
     def release(self) -> None:
