@@ -169,3 +169,35 @@ def test_static_geometry_written_into_reused_buffers_draws_as_uploaded(gl_ctx):
         ren.write_static(np.zeros((3, 3)), np.array([[0, 1, 3]]), np.zeros(1, np.uint8))
     person.release()
     ren.release()
+
+
+def test_many_avatars_never_release_a_mesh_the_frame_draws(gl_ctx):
+    """Frames of 3 (then 6) people drawn from 9 avatars: the resident meshes stay bounded
+    (least recently used go) and never include a released one the frame still draws."""
+    from vhgen.render.scene import MAX_RESIDENT_AVATARS
+
+    bodies = {a: _Quad(-1.2 + 0.4 * k, -0.9 + 0.4 * k, -0.3, 0.3, 3.0 + 0.1 * a, label=a + 1)
+              for a in range(9) for k in [a % 6]}
+    built = []
+
+    def body_of(a):
+        built.append(a)
+        return bodies[a]
+
+    ren = DepthLabelRenderer(gl_ctx, INTR)
+    scene = SceneRenderer(ren, body_of)
+    rng = np.random.default_rng(5)
+    for f in range(30):
+        n = 3 if f < 20 else 6
+        avatars = rng.choice(9, size=n, replace=False)
+        people = [Person(k + 1, int(a), 0, np.eye(4)[None], np.zeros((1, 3)), np.zeros(3))
+                  for k, a in enumerate(avatars)]
+        view = scene.render(_desc(people, [])).camera
+        assert len(scene._meshes) <= max(MAX_RESIDENT_AVATARS, n)
+        # every person drawn, with their own avatar's labels (placed apart in x by avatar)
+        seen = set(np.unique(view.labels[view.labels > 0]).tolist())
+        assert {int(a) + 1 for a in avatars if a % 6 not in {b % 6 for b in avatars
+                                                              if b != a}} <= seen
+    assert len(built) > 9  # evicted avatars were uploaded again
+    scene.release()
+    ren.release()

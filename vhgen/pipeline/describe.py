@@ -94,12 +94,13 @@ class FrameDescriber:
 
     def body(self, avatar_id: int) -> Body:
         """The avatar's shaped body (CPU), built once per describer."""
-        if avatar_id not in self._bodies:
-            if len(self._bodies) >= MAX_BODIES:  # avatars come in runs (avatar-major plan)
+        body = self._bodies.pop(avatar_id, None)
+        if body is None:
+            if len(self._bodies) >= MAX_BODIES:  # the least recently used goes
                 self._bodies.pop(next(iter(self._bodies)))
-            self._bodies[avatar_id] = build_avatar(self.asset_dir, self.scheme,
-                                                   self.avatars[avatar_id])
-        return self._bodies[avatar_id]
+            body = build_avatar(self.asset_dir, self.scheme, self.avatars[avatar_id])
+        self._bodies[avatar_id] = body  # most recently used at the end
+        return body
 
     def person(self, instance: int, avatar_id: int, pose: int, ground: bool = False,
                footprint: bool = False) -> Person:

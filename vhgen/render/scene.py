@@ -55,22 +55,28 @@ class SceneRenderer:
         self.body_of = body_of
         self._meshes: dict[int, GpuMesh] = {}
 
-    def _mesh(self, avatar_id: int) -> GpuMesh:
-        mesh = self._meshes.get(avatar_id)
-        if mesh is None:
-            if len(self._meshes) >= MAX_RESIDENT_AVATARS:
-                self._meshes.pop(next(iter(self._meshes))).release()
-            b = self.body_of(avatar_id)
-            mesh = self.renderer.upload(b.vertices, b.faces, b.joints, b.weights,
-                                        b.face_labels, b.num_bones)
-            self._meshes[avatar_id] = mesh
-        return mesh
+    def _resident(self, avatar_ids: list[int]) -> list[GpuMesh]:
+        """The GPU meshes of ``avatar_ids`` (uploaded if needed), least recently used ones
+        released beyond :data:`MAX_RESIDENT_AVATARS`, never one this frame draws."""
+        need = list(dict.fromkeys(avatar_ids))
+        for a in need:  # most recently used at the end
+            mesh = self._meshes.pop(a, None)
+            if mesh is None:
+                b = self.body_of(a)
+                mesh = self.renderer.upload(b.vertices, b.faces, b.joints, b.weights,
+                                            b.face_labels, b.num_bones)
+            self._meshes[a] = mesh
+        # the last len(need) entries are this frame's: only older ones go
+        while len(self._meshes) > max(MAX_RESIDENT_AVATARS, len(need)):
+            self._meshes.pop(next(iter(self._meshes))).release()
+        return [self._meshes[a] for a in avatar_ids]
 
     def render(self, desc: FrameDescription, projector_baseline_m: float | None = None
                ) -> SceneViews:
         """The camera view and, when ``projector_baseline_m`` is given, the projector's
         depth of the same scene."""
-        people = [(self._mesh(p.avatar_id), p) for p in desc.people]
+        meshes = self._resident([p.avatar_id for p in desc.people])
+        people = list(zip(meshes, desc.people, strict=True))
         # all static geometry as one mesh, one draw: the same triangles in the same order
         # (so the same depth-test outcome) for a fraction of the GL objects and calls, in
         # buffers the renderer reuses from frame to frame
