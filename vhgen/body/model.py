@@ -80,6 +80,28 @@ def _faces(base: BaseMesh, clothing: tuple[str, ...]) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=16)
+def _topology(asset_dir: Path, clothing: tuple[str, ...], rig_name: str, max_influences: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What every avatar with this clothing shares, whatever its shape: the base vertices
+    kept (V,), the triangles re-indexed to them (T, 3), and the truncated skinning
+    (joints, weights) (V, k). Read-only; parsed once per process (the weights JSON alone
+    took 25 ms per body)."""
+    base = _base(asset_dir)
+    faces_all = _faces(base, clothing)
+    keep = np.unique(faces_all)
+    remap = np.full(len(base.vertices), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    faces = remap[faces_all]
+    # the weights name bones; the rig here only orders them (the same for every shape)
+    rig = load_rig(asset_dir, base.vertices, base.vertex_groups, rig_name)
+    dense = load_weights(asset_dir, rig, len(base.vertices), rig_name)
+    joints, weights = truncate_weights(dense[keep], max_influences)
+    for a in (keep, faces, joints, weights):
+        a.setflags(write=False)
+    return keep, faces, joints, weights
+
+
+@functools.lru_cache(maxsize=16)
 def _labels(asset_dir: Path, scheme: LabelScheme, clothing: tuple[str, ...],
             rig_name: str) -> np.ndarray:
     """Per-triangle labels, decided once on the unshaped base mesh so that every avatar
@@ -109,21 +131,14 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
     raw = base.vertices_obj
     if shape is not None:
         raw = raw + _targets(asset_dir).offsets(shape, len(raw))
-    faces_all = _faces(base, clothing)
     verts_all, _ = to_metres_grounded(raw, base.faces[base.face_group ==
                                                       base.groups.index(BODY_GROUP)])
     verts_all *= float(scale)
     rig = load_rig(asset_dir, verts_all, base.vertex_groups, rig_name)
-    dense_all = load_weights(asset_dir, rig, len(verts_all), rig_name)
-    keep = np.unique(faces_all)
-    remap = np.full(len(verts_all), -1, dtype=np.int64)
-    remap[keep] = np.arange(len(keep))
-    faces = remap[faces_all]
+    keep, faces, joints, weights = _topology(asset_dir, clothing, rig_name, max_influences)
     verts = verts_all[keep]
+    verts.setflags(write=False)
     labels = _labels(asset_dir, scheme, clothing, rig_name)
-    joints, weights = truncate_weights(dense_all[keep], max_influences)
-    for a in (verts, faces, joints, weights):
-        a.setflags(write=False)
     params = {"scale": float(scale), "rig": rig_name, "max_influences": int(max_influences),
               "clothing": list(clothing)}
     if shape is not None:

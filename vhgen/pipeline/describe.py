@@ -66,7 +66,7 @@ def mounted_camera(eye: np.ndarray, pitch_deg: float, roll_deg: float) -> np.nda
     return rz @ w2c
 
 
-MAX_BODIES = 4  # CPU bodies a describer keeps
+MAX_BODIES = 32  # CPU bodies a describer keeps (~0.4 MB each: the topology is shared)
 
 
 class FrameDescriber:

@@ -17,7 +17,7 @@ from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
 from vhgen.scene.geometry import PERSON, StaticMesh
 
-MAX_RESIDENT_AVATARS = 4
+MAX_RESIDENT_AVATARS = 16  # ~1.1 MB of GPU buffers each
 
 
 @dataclass(frozen=True, eq=False)

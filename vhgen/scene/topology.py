@@ -38,22 +38,19 @@ def components(faces: np.ndarray, num_vertices: int) -> np.ndarray:
             return parent
 
 
-def closed_sides(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(T,) int8 per triangle: OUTWARD (1) when it belongs to a closed surface wound
-    counter-clockwise seen from outside (positive signed volume), INWARD (-1) for a closed
-    surface wound the other way, OPEN (0) otherwise.
+def closed_components(faces: np.ndarray, num_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """The topology half of :func:`closed_sides` (it depends on the faces only, so a
+    renderer can reuse it for every avatar of one mesh topology): the component of each
+    triangle (T,) int64 in 0..C-1, and whether each component is closed (C,) bool.
 
     A connected component is closed when every directed edge (a, b) of its triangles
-    occurs once and its reverse (b, a) once: watertight, manifold, consistently wound. A
-    closed component of (near) zero volume is OPEN: its facing is undefined.
-    vertices (V, 3) float, faces (T, 3) int.
+    occurs once and its reverse (b, a) once: watertight, manifold, consistently wound.
     """
-    v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     t = len(f)
     if t == 0:
-        return np.zeros(0, np.int8)
-    n = np.int64(len(v))
+        return np.zeros(0, np.int64), np.zeros(0, bool)
+    n = np.int64(num_vertices)
     a = f.reshape(-1)
     b = np.roll(f, -1, axis=1).reshape(-1)
     code = a * n + b
@@ -67,21 +64,38 @@ def closed_sides(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     pos = np.clip(np.searchsorted(sorted_code, rev), 0, len(code) - 1)
     paired = once & (sorted_code[pos] == rev)
     face_ok = paired.reshape(t, 3).all(axis=1)
-    comp = components(f, len(v))[f[:, 0]]
-    _, comp = np.unique(comp, return_inverse=True)
+    _, comp = np.unique(components(f, num_vertices)[f[:, 0]], return_inverse=True)
+    comp = comp.reshape(-1).astype(np.int64)
     ncomp = int(comp.max()) + 1
-    bad = np.bincount(comp, weights=~face_ok, minlength=ncomp) > 0
+    closed = np.bincount(comp, weights=~face_ok, minlength=ncomp) == 0
+    return comp, closed
+
+
+def closed_sides(vertices: np.ndarray, faces: np.ndarray,
+                 topology: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """(T,) int8 per triangle: OUTWARD (1) when it belongs to a closed surface wound
+    counter-clockwise seen from outside (positive signed volume), INWARD (-1) for a closed
+    surface wound the other way, OPEN (0) otherwise (see :func:`closed_components`; pass
+    its result as ``topology`` to skip recomputing it). A closed component of (near) zero
+    volume is OPEN: its facing is undefined. vertices (V, 3) float, faces (T, 3) int.
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    if len(f) == 0:
+        return np.zeros(0, np.int8)
+    comp, closed = topology if topology is not None else closed_components(f, len(v))
+    ncomp = len(closed)
     p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
     vol6 = np.einsum("ij,ij->i", p0, np.cross(p1, p2))
     volume = np.bincount(comp, weights=vol6, minlength=ncomp) / 6.0
     # "near zero": relative to the component's extent cubed, so units do not matter
-    lo = np.full((ncomp, 3), np.inf)
-    hi = np.full((ncomp, 3), -np.inf)
-    for k in range(3):
-        for p in (p0, p1, p2):
-            np.minimum.at(lo[:, k], comp, p[:, k])
-            np.maximum.at(hi[:, k], comp, p[:, k])
-    extent = np.max(hi - lo, axis=1)
+    vcomp = np.full(len(v), -1, np.int64)  # a vertex lies in exactly one component
+    vcomp[f.reshape(-1)] = np.repeat(comp, 3)
+    used = np.flatnonzero(vcomp >= 0)
+    order = used[np.argsort(vcomp[used], kind="stable")]
+    starts = np.flatnonzero(np.r_[True, np.diff(vcomp[order]) != 0])
+    extent = (np.maximum.reduceat(v[order], starts, axis=0)
+              - np.minimum.reduceat(v[order], starts, axis=0)).max(axis=1)
     flat = np.abs(volume) <= 1e-9 * extent ** 3
-    side = np.where(bad | flat, OPEN, np.where(volume > 0, OUTWARD, INWARD))
+    side = np.where(~closed | flat, OPEN, np.where(volume > 0, OUTWARD, INWARD))
     return side[comp].astype(np.int8)
