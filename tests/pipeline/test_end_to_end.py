@@ -270,6 +270,13 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
         person = row["people"][0]
         assert len(person["joints_px"]) == 2 * 31 and len(person["joints_visible"]) == 31
         assert json.loads(row["scene"])["floor"] is True
+        # placements as a reader checks them: footprints apart (people, props)
+        discs = [tuple(p["footprint"]) for p in row["people"]] + [
+            (q["x"], q["z"], q["radius"]) for q in json.loads(row["scene"])["props"]]
+        for i, (x, z, r) in enumerate(discs):
+            assert r > 0.1
+            for x2, z2, r2 in discs[i + 1:]:
+                assert np.hypot(x - x2, z - z2) >= r + r2
     assert max(r["num_people"] for r in rows) > 1
     # the preview adds the instance and class images for scenes
     from PIL import Image
