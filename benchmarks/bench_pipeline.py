@@ -46,6 +46,9 @@ def main() -> None:
     ap.add_argument("--scene", default=str(REPO / "configs" / "scenes" / "living_room.yaml"),
                     help="a scene config whose frames are timed beside --config's, "
                          "interleaved (target: at most 1.3x); '' to skip")
+    ap.add_argument("--scene-frames", type=int, default=96,
+                    help="frames timed per config for the scene comparison (in memory, "
+                         "then end to end: the same frames)")
     ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
@@ -126,7 +129,8 @@ def main() -> None:
     rows.append(("frame (render+sensor+meta)", len(out_rows), t_full))
     ratio = None
     if args.scene:
-        ratio = _scene_rows(args.scene, args.backend, gen, frames, rows, asset_dir)
+        ratio = _scene_rows(args.scene, args.backend, gen, args.scene_frames, rows,
+                            asset_dir)
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
@@ -169,16 +173,20 @@ def main() -> None:
     if ratio is not None:
         print(f"scene frame / person-only frame, end to end (shards written): {ratio[2]:.2f}x "
               f"as configured, {ratio[3]:.2f}x with one person (target <= 1.3x); in memory "
-              f"(no write): {ratio[0]:.2f}x, {ratio[1]:.2f}x")
+              f"(no write): {ratio[0]:.2f}x, {ratio[1]:.2f}x; in memory without the GL "
+              f"draw and read back (the CPU share, what a GPU worker approaches): "
+              f"{ratio[4]:.2f}x")
 
 
-def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[float, ...]:
+def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[float, ...]:
     """Frames of the scene config timed interleaved with the person-only generator's
     (same process, same machine state): rows for both and their ratios, first for the
     in-memory frame (describe, render, sensor, record), then end to end: whole shards
     written to a store as a job's worker does (``run_task``: the frames, the Zarr shard and
-    its manifest part). Returns (in-memory as configured, in-memory one person, end to end
-    as configured, end to end one person)."""
+    its manifest part). Both passes time the same frames (after a warm-up shard), frame i
+    of each plan (cycled when a plan is shorter). Returns (in-memory as configured,
+    in-memory one person, end to end as configured, end to end one person, in-memory
+    without GL)."""
     from vhgen.config import JobConfig
     from vhgen.pipeline.frames import local_generator
     from vhgen.store.zarr_store import create_store
@@ -186,58 +194,74 @@ def _scene_rows(scene_path, backend, gen, frames, rows, asset_dir) -> tuple[floa
     full = JobConfig.load(scene_path, backend=backend)
     # the same room and props with exactly one person: what the scene itself costs
     one = replace(full, scene=replace(full.scene, people=(1, 1)))
-    gens = [local_generator(c, asset_dir, context=gen.ctx)[0] for c in (full, one)]
-    plan = gens[0].describer.plan
-    num_frames = len(plan["seeds"])
-    for g in gens:
-        for f in range(min(4, num_frames)):  # avatars built and resident
-            g.render_frame(f)
-    t_person = 0.0
-    t_scene = [0.0, 0.0]
-    people = 0
-    for i, f in enumerate(frames):
-        t = time.perf_counter()
-        gen.render_frame(int(f))
-        t_person += time.perf_counter() - t
-        for k, g in enumerate(gens):
+    gens = [gen] + [local_generator(c, asset_dir, context=gen.ctx)[0] for c in (full, one)]
+    sizes = [len(g.describer.plan["seeds"]) for g in gens]
+    k = min(g.cfg.frames_per_shard for g in gens)
+    shards = max(2, num_frames // k)
+    frames = range(k, (shards + 1) * k)  # shard 0: warm-up (avatars, zarr, pyarrow)
+    for g, n in zip(gens, sizes, strict=True):
+        for f in range(k):
+            g.render_frame(f % n)
+    t_mem = [0.0, 0.0, 0.0]
+    people = [0, 0]
+    t_gl = _time_gl(gens)
+    for f in frames:
+        for j, (g, n) in enumerate(zip(gens, sizes, strict=True)):
             t = time.perf_counter()
-            out = g.render_frame(i % num_frames)
-            t_scene[k] += time.perf_counter() - t
-            people += out.record.num_people if k == 0 else 0
-    n = len(frames)
-    rows.append(("frame, person only (interleaved)", n, t_person))
-    rows.append((f"frame, {full.name} (interleaved, {people / n:.1f} people)", n, t_scene[0]))
-    rows.append((f"frame, {full.name} with 1 person (interleaved)", n, t_scene[1]))
+            out = g.render_frame(f % n)
+            t_mem[j] += time.perf_counter() - t
+            people[0] += out.record.num_people if j == 1 else 0
+    gl = [t_gl[id(g)] for g in gens]
+    m = len(frames)
+    label = f"{full.name} ({people[0] / m:.2f} people)"
+    rows.append(("frame, person only (interleaved)", m, t_mem[0]))
+    rows.append((f"frame, {label}", m, t_mem[1]))
+    rows.append((f"frame, {full.name} with 1 person", m, t_mem[2]))
+    rows.append(("  of which GL (draw, read back), person only", m, gl[0]))
+    rows.append((f"  of which GL (draw, read back), {full.name}", m, gl[1]))
+    rows.append((f"  of which GL (draw, read back), {full.name} 1 person", m, gl[2]))
 
-    # end to end: shards of the same size written by each generator, interleaved
-    all_gens = [gen, *gens]
-    k = min(g.cfg.frames_per_shard for g in all_gens)
-    shards = max(2, min(len(frames), min(len(g.describer.plan["seeds"]) for g in all_gens))
-                 // k)
+    # end to end: shards of the same frames written by each generator, interleaved
     t_e2e = [0.0, 0.0, 0.0]
     with tempfile.TemporaryDirectory() as tmp:
         stores = []
-        for j, g in enumerate(all_gens):
+        for j, g in enumerate(gens):
             c = g.cfg
             stores.append(str(Path(tmp) / f"s{j}.zarr"))
-            create_store(stores[-1], num_frames=shards * k, height=c.sensor.intrinsics.height,
-                         width=c.sensor.intrinsics.width, frames_per_shard=k,
-                         compression_level=c.compression_level, attrs={},
-                         raw11=c.sensor.encoding.raw11)
-        for sh in range(shards):
-            for j, g in enumerate(all_gens):
+            create_store(stores[-1], num_frames=(shards + 1) * k,
+                         height=c.sensor.intrinsics.height, width=c.sensor.intrinsics.width,
+                         frames_per_shard=k, compression_level=c.compression_level,
+                         attrs={}, raw11=c.sensor.encoding.raw11)
+        for sh in range(shards + 1):
+            for j, (g, n) in enumerate(zip(gens, sizes, strict=True)):
+                if sh * k + k > n:  # a plan shorter than the run: its frames cycle
+                    g.describer.plan = {key: np.resize(v, (shards + 1) * k)
+                                        for key, v in g.describer.plan.items()}
                 t = time.perf_counter()
                 g.run_task(stores[j], sh, sh * k, sh * k + k)
-                if sh > 0:  # shard 0: warm-up (zarr and pyarrow first use)
+                if sh > 0:  # shard 0: warm-up
                     t_e2e[j] += time.perf_counter() - t
-    for g in gens:
+    for g in gens[1:]:
         g.close()
-    m = (shards - 1) * k
     rows.append(("end to end, person only (shards)", m, t_e2e[0]))
-    rows.append((f"end to end, {full.name} (shards)", m, t_e2e[1]))
+    rows.append((f"end to end, {label} (shards)", m, t_e2e[1]))
     rows.append((f"end to end, {full.name} with 1 person (shards)", m, t_e2e[2]))
-    return (t_scene[0] / t_person, t_scene[1] / t_person, t_e2e[1] / t_e2e[0],
-            t_e2e[2] / t_e2e[0])
+    return (t_mem[1] / t_mem[0], t_mem[2] / t_mem[0], t_e2e[1] / t_e2e[0],
+            t_e2e[2] / t_e2e[0], (t_mem[1] - gl[1]) / (t_mem[0] - gl[0]))
+
+
+def _time_gl(gens) -> dict[int, float]:
+    """Seconds each generator spends in its render step (GL draw and read back), by
+    id(generator): llvmpipe's share, which a GPU worker mostly does not pay."""
+    spent = {id(g): 0.0 for g in gens}
+    for g in gens:
+        def timed(desc, *a, _g=g, _render=g.scene.render, **kw):
+            t = time.perf_counter()
+            out = _render(desc, *a, **kw)
+            spent[id(_g)] += time.perf_counter() - t
+            return out
+        g.scene.render = timed
+    return spent
 
 
 def fixed_cost(cfg, steps, executors=("local", "ray")) -> list[tuple[str, int, float]]:
