@@ -5,66 +5,162 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+# unsigned index type: numba adds a negative-index wraparound to every signed index
+U = np.uint64
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
-def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragma: no cover
-    """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
 
-    d : (H, W) float64 disparity (px); valid : (H, W) bool; dots : (H, W) bool, a dot of
-    the projected pattern lands on the pixel. For every valid dot pixel c at least
-    ``half`` px from the border: among the dots of its (2 half + 1)^2 window, the valid ones
-    must exceed ``frac`` x the window's dots; their mean m is taken, and dots with
-    |d - m| * w(x, y) < inlier_px, w = 1 / ((1.2 x)^2 + (1.2 y)^2) (w(0, 0) = 1), are
-    inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats its
-    own disparity to every pixel within ``splat_r`` px, where the splat weight 1 / (1 + r^2)
-    beats what the pixel already holds. Pixels no accepted dot reaches are holes.
-    Window counts and sums come from summed-area tables (O(1) per pixel); the inliers are
-    counted a window row at a time, branch-free inside the row (the row is contiguous, so
-    the compiler vectorises it), and the scan stops after the first row at which the
-    verdict is certain. The verdict depends only on the total inlier count, so the order
-    of the count does not change it. Returns (d_out, valid_out); d_out is 0 where
-    valid_out is False.
-    """
+@numba.njit(cache=True, nogil=True)
+def _cw_tables(d, valid, dots):  # pragma: no cover
+    """Flat (H + 1) (W + 1) summed-area tables of valid dots (int32) and of their
+    disparities (float64, the row's running sum added to the row above), and the raster
+    indices of the valid dots."""
     h, w = d.shape
-    # summed-area tables of dots, valid dots and their disparities
-    sd = np.zeros((h + 1, w + 1), dtype=np.int32)
-    sv = np.zeros((h + 1, w + 1), dtype=np.int32)
-    ss = np.zeros((h + 1, w + 1))
-    dv = np.zeros((h, w), dtype=np.bool_)  # a valid dot
+    W = U(w + 1)
+    sv = np.empty((h + 1) * (w + 1), dtype=np.int32)
+    ss = np.empty((h + 1) * (w + 1))
+    cand = np.empty(h * w, dtype=np.int64)
+    df = d.reshape(-1)
+    vf = valid.reshape(-1)
+    of = dots.reshape(-1)
+    for x in range(w + 1):
+        sv[U(x)] = 0
+        ss[U(x)] = 0.0
+    nc = U(0)
     for y in range(h):
-        rd = 0
+        uy = U(y)
+        r0 = uy * W          # SAT row y
+        r1 = r0 + W          # SAT row y + 1
+        p0 = uy * U(w)       # image row y
+        sv[r1] = 0
+        ss[r1] = 0.0
         rv = 0
         rs = 0.0
         for x in range(w):
-            if dots[y, x]:
-                rd += 1
-                if valid[y, x]:
-                    dv[y, x] = True
-                    rv += 1
-                    rs += d[y, x]
-            sd[y + 1, x + 1] = sd[y, x + 1] + rd
-            sv[y + 1, x + 1] = sv[y, x + 1] + rv
-            ss[y + 1, x + 1] = ss[y, x + 1] + rs
+            ux = U(x)
+            p = p0 + ux
+            isv = of[p] & vf[p]
+            v = df[p]
+            rv += 1 if isv else 0
+            rs += v if isv else 0.0
+            sv[r1 + ux + U(1)] = sv[r0 + ux + U(1)] + rv
+            ss[r1 + ux + U(1)] = ss[r0 + ux + U(1)] + rs
+            cand[nc] = y * w + x
+            nc += U(1) if isv else U(0)
+    return sv, ss, cand[:nc]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_dot_sat(dots):  # pragma: no cover
+    """Flat (H + 1) (W + 1) int32 summed-area table of all dots."""
+    h, w = dots.shape
+    W = U(w + 1)
+    sd = np.empty((h + 1) * (w + 1), dtype=np.int32)
+    of = dots.reshape(-1)
+    for x in range(w + 1):
+        sd[U(x)] = 0
+    for y in range(h):
+        r0 = U(y) * W
+        r1 = r0 + W
+        p0 = U(y) * U(w)
+        sd[r1] = 0
+        rd = 0
+        for x in range(w):
+            ux = U(x)
+            rd += 1 if of[p0 + ux] else 0
+            sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
+    return sd
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_has_stray(valid, dots):  # pragma: no cover
+    """Whether some dot falls on an invalid pixel (branch-free, one pass)."""
+    vf = valid.reshape(-1)
+    of = dots.reshape(-1)
+    acc = False
+    for i in range(vf.size):
+        acc |= of[U(i)] & ~vf[U(i)]
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_accept(d, valid, dots, sv, ss, sd, cand, stray, half, frac, inlier_px):  # pragma: no cover
+    """Raster indices of the accepted dots, in raster order (see correlation_window)."""
+    h, w = d.shape
+    df = d.reshape(-1)
+    vf = valid.reshape(-1)
+    of = dots.reshape(-1)
     n = 2 * half + 1
-    thr = np.empty((n, n))  # |d - m| < thr[j, i]  <=>  |d - m| * w(i, j) < inlier_px
+    thr = np.empty(n * n)
     for j in range(-half, half + 1):
         for i in range(-half, half + 1):
+            k = U((j + half) * n + i + half)
             if i == 0 and j == 0:
-                thr[j + half, i + half] = inlier_px
+                thr[k] = inlier_px
             else:
-                thr[j + half, i + half] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
+                thr[k] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
+    W = U(w + 1)
+    un = U(n)
+    acc = np.empty(cand.size, dtype=np.int64)
+    na = 0
+    for k in range(cand.size):
+        c = cand[U(k)]
+        y = c // w
+        x = c - y * w
+        if y < half or y >= h - half or x < half or x >= w - half:
+            continue
+        a0 = U(y - half) * W + U(x - half)   # SAT (y0, x0)
+        b0 = a0 + un * W                     # SAT (y1, x0)
+        n_valid = sv[b0 + un] - sv[a0 + un] - sv[b0] + sv[a0]
+        if stray:
+            n_dots = sd[b0 + un] - sd[a0 + un] - sd[b0] + sd[a0]
+        else:
+            n_dots = n_valid
+        need = frac * n_dots
+        if n_valid <= need:
+            continue
+        mean = (ss[b0 + un] - ss[a0 + un] - ss[b0] + ss[a0]) / n_valid
+        top = sv[a0 + un] - sv[a0]
+        inl = 0
+        rb = U(y - half) * U(w) + U(x - half)
+        tb = U(0)
+        ra = a0
+        for _ in range(n):
+            row_inl = 0
+            if stray:
+                for i in range(n):
+                    p = rb + U(i)
+                    row_inl += 1 if of[p] & vf[p] & (abs(df[p] - mean) < thr[tb + U(i)]) else 0
+            else:  # every dot is valid: one mask load fewer
+                for i in range(n):
+                    p = rb + U(i)
+                    row_inl += 1 if of[p] & (abs(df[p] - mean) < thr[tb + U(i)]) else 0
+            inl += row_inl
+            if inl > need:
+                acc[na] = c
+                na += 1
+                break
+            ra += W
+            left = n_valid - (sv[ra + un] - sv[ra] - top)
+            if inl + left <= need:
+                break
+            rb += U(w)
+            tb += un
+    return acc[:na]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_splat(d, acc, splat_r):  # pragma: no cover
+    """Splat the accepted dots in raster order; returns (d_out, valid_out)."""
+    h, w = d.shape
     out = np.zeros((h, w))
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
     if r2max > 254.0:
         raise ValueError("correlation_window: splat radius above 15 px")
-    # The splat weight 1 / (1 + r^2) falls strictly with the integer r^2, so the pixel
-    # keeps the splat of smallest r^2: stored as the rank 255 - r^2 (0 = no splat yet),
-    # uint8, so the whole array stays in cache, instead of the float64 weight.
     best = np.zeros((h, w), dtype=np.uint8)
     outf = out.reshape(-1)
     bestf = best.reshape(-1)
-    # splat footprint: offsets within the radius and their ranks
+    df = d.reshape(-1)
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -83,57 +179,65 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 of[m] = j * w + i
                 ow[m] = 255 - (i * i + j * j)
                 m += 1
-    for y in range(half, h - half):
-        y0 = y - half
-        y1 = y + half + 1
-        for x in range(half, w - half):
-            if not dv[y, x]:
-                continue
-            x0 = x - half
-            x1 = x + half + 1
-            n_dots = sd[y1, x1] - sd[y0, x1] - sd[y1, x0] + sd[y0, x0]
-            n_valid = sv[y1, x1] - sv[y0, x1] - sv[y1, x0] + sv[y0, x0]
-            need = frac * n_dots
-            if n_valid <= need:
-                continue
-            mean = (ss[y1, x1] - ss[y0, x1] - ss[y1, x0] + ss[y0, x0]) / n_valid
-            inl = 0
-            left = n_valid
-            accepted = False
-            for j in range(n):
-                yy = y0 + j
-                row_dots = 0
-                row_inl = 0
-                for i in range(n):
-                    is_dot = dv[yy, x0 + i]
-                    inlier = abs(d[yy, x0 + i] - mean) < thr[j, i]
-                    row_dots += 1 if is_dot else 0
-                    row_inl += 1 if is_dot and inlier else 0
-                inl += row_inl
-                left -= row_dots
-                if inl > need:
-                    accepted = True
-                    break
-                if inl + left <= need:
-                    break
-            if not accepted:
-                continue
-            dc = d[y, x]
-            c = y * w + x
-            if r <= y < h - r and r <= x < w - r:
-                for k in range(m):
-                    p = c + of[k]
-                    if ow[k] > bestf[p]:
-                        bestf[p] = ow[k]
-                        outf[p] = dc
-            else:
-                for k in range(m):
-                    yy = y + oy[k]
-                    xx = x + ox[k]
-                    if 0 <= yy < h and 0 <= xx < w and ow[k] > best[yy, xx]:
-                        best[yy, xx] = ow[k]
-                        out[yy, xx] = dc
+    for k in range(acc.size):
+        c = acc[k]
+        y = c // w
+        x = c - y * w
+        dc = df[c]
+        if r <= y < h - r and r <= x < w - r:
+            # branch-free: which splat wins is data-dependent, a branch mispredicts
+            for q in range(m):
+                p = U(c + of[U(q)])
+                o = ow[U(q)]
+                b = bestf[p]
+                t = o > b
+                bestf[p] = o if t else b
+                outf[p] = dc if t else outf[p]
+        else:
+            for q in range(m):
+                yy = y + oy[q]
+                xx = x + ox[q]
+                if 0 <= yy < h and 0 <= xx < w and ow[q] > best[yy, xx]:
+                    best[yy, xx] = ow[q]
+                    out[yy, xx] = dc
     return out, best > 0
+
+
+@numba.njit(cache=True, nogil=True)
+def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragma: no cover
+    """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
+
+    d : (H, W) float64 disparity (px); valid : (H, W) bool; dots : (H, W) bool, a dot of
+    the projected pattern lands on the pixel. For every valid dot pixel c at least
+    ``half`` px from the border: among the dots of its (2 half + 1)^2 window, the valid ones
+    must exceed ``frac`` x the window's dots; their mean m is taken, and dots with
+    |d - m| * w(x, y) < inlier_px, w = 1 / ((1.2 x)^2 + (1.2 y)^2) (w(0, 0) = 1), are
+    inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats
+    its own disparity to every pixel within ``splat_r`` px (ValueError above
+    sqrt(254) ~ 15.9 px), where the splat weight 1 / (1 + r^2) beats what the pixel
+    already holds (dots splat in raster order, so on a tie the earlier dot keeps the
+    pixel). Pixels no accepted dot reaches are holes. Returns (d_out, valid_out); d_out is
+    0 where valid_out is False.
+
+    The window sum of disparities is a float64 summed-area table: per row the running sum
+    of d over the valid dots left to right, added to the table row above. The mean is
+    (S[y1, x1] - S[y0, x1] - S[y1, x0] + S[y0, x0]) / n_valid in that order, so it is the
+    same number whatever the implementation (tests/sensor/test_correlation_window.py
+    holds a plain reference). Counts come from int32 tables; the table of all dots is
+    built only when some dot is not valid (the shipped stage computes dots on valid
+    pixels only, so there the valid-dot table serves both). The inlier scan reads the
+    window a row at a time and stops after the first row at which the verdict is certain
+    (it depends only on the total count). Indices are unsigned so that numba emits no
+    negative-index wraparound in the inner loops.
+    """
+    d = np.ascontiguousarray(d)
+    valid = np.ascontiguousarray(valid)
+    dots = np.ascontiguousarray(dots)
+    stray = _cw_has_stray(valid, dots)
+    sv, ss, cand = _cw_tables(d, valid, dots)
+    sd = _cw_dot_sat(dots) if stray else sv
+    acc = _cw_accept(d, valid, dots, sv, ss, sd, cand, stray, half, frac, inlier_px)
+    return _cw_splat(d, acc, splat_r)
 
 
 @numba.njit(cache=True, nogil=True)
