@@ -171,3 +171,14 @@ def test_non_contiguous_inputs() -> None:
     d, valid, dots = scene(rng, 30, 44, 0.8, 0.3, stray=True)
     check(d[:, ::2], valid[:, ::2], dots[:, ::2], 2, 2 / 3, 0.1, 3.1)
     check(d.T, valid.T, dots.T, 2, 2 / 3, 0.1, 3.1)
+
+
+@pytest.mark.parametrize(("h", "w", "half", "splat_r", "stray"), [
+    (100, 17, 2, 3.1, False), (70, 23, 4, 15.9, True), (65, 12, 1, 0.0, False),
+    (97, 30, 3, 2.0, True), (33, 9, 1, 1.0, False)])
+def test_tall_images_cross_the_row_buffers(h: int, w: int, half: int, splat_r: float,
+                                           stray: bool) -> None:
+    # the kernel streams rows through a ring of tables and a 32-row splat buffer
+    rng = np.random.default_rng(h * w)
+    d, valid, dots = scene(rng, h, w, 0.8, 0.3, stray=stray)
+    check(d, valid, dots, half, 2 / 3, 0.1, splat_r)

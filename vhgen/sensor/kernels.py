@@ -10,197 +10,66 @@ U = np.uint64
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_tables(d, valid, dots):  # pragma: no cover
-    """Flat (H + 1) (W + 1) summed-area tables of valid dots (int32) and of their
-    disparities (float64, the row's running sum added to the row above), and the raster
-    indices of the valid dots."""
-    h, w = d.shape
-    W = U(w + 1)
-    sv = np.empty((h + 1) * (w + 1), dtype=np.int32)
-    ss = np.empty((h + 1) * (w + 1))
-    cand = np.empty(h * w, dtype=np.int64)
-    df = d.reshape(-1)
-    vf = valid.reshape(-1)
-    of = dots.reshape(-1)
-    for x in range(w + 1):
-        sv[U(x)] = 0
-        ss[U(x)] = 0.0
-    nc = U(0)
-    for y in range(h):
-        uy = U(y)
-        r0 = uy * W          # SAT row y
-        r1 = r0 + W          # SAT row y + 1
-        p0 = uy * U(w)       # image row y
-        sv[r1] = 0
-        ss[r1] = 0.0
-        rv = 0
-        rs = 0.0
-        for x in range(w):
-            ux = U(x)
-            p = p0 + ux
-            isv = of[p] & vf[p]
-            v = df[p]
-            rv += 1 if isv else 0
-            rs += v if isv else 0.0
-            sv[r1 + ux + U(1)] = sv[r0 + ux + U(1)] + rv
-            ss[r1 + ux + U(1)] = ss[r0 + ux + U(1)] + rs
-            cand[nc] = y * w + x
-            nc += U(1) if isv else U(0)
-    return sv, ss, cand[:nc]
-
-
-@numba.njit(cache=True, nogil=True)
-def _cw_dot_sat(dots):  # pragma: no cover
-    """Flat (H + 1) (W + 1) int32 summed-area table of all dots."""
-    h, w = dots.shape
-    W = U(w + 1)
-    sd = np.empty((h + 1) * (w + 1), dtype=np.int32)
-    of = dots.reshape(-1)
-    for x in range(w + 1):
-        sd[U(x)] = 0
-    for y in range(h):
-        r0 = U(y) * W
-        r1 = r0 + W
-        p0 = U(y) * U(w)
-        sd[r1] = 0
-        rd = 0
-        for x in range(w):
-            ux = U(x)
-            rd += 1 if of[p0 + ux] else 0
-            sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
-    return sd
-
-
-@numba.njit(cache=True, nogil=True)
-def _cw_has_stray(valid, dots):  # pragma: no cover
-    """Whether some dot falls on an invalid pixel (branch-free, one pass)."""
-    vf = valid.reshape(-1)
-    of = dots.reshape(-1)
-    acc = False
+def _cw_count(valid, dots):  # pragma: no cover
+    """(some dot falls on an invalid pixel, number of valid dots); branch-free."""
+    vf = valid.reshape(-1).view(np.uint8)
+    of = dots.reshape(-1).view(np.uint8)
+    stray = np.uint8(0)
+    nvd = 0
     for i in range(vf.size):
-        acc |= of[U(i)] & ~vf[U(i)]
-    return acc
+        stray |= of[U(i)] & ~vf[U(i)]
+        nvd += np.int64(of[U(i)] & vf[U(i)])
+    return stray != 0, nvd
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_accept(d, valid, dots, sv, ss, sd, cand, stray, half, frac, inlier_px):  # pragma: no cover
-    """Raster indices of the accepted dots, in raster order (see correlation_window)."""
-    h, w = d.shape
-    df = d.reshape(-1)
-    vf = valid.reshape(-1)
-    of = dots.reshape(-1)
-    n = 2 * half + 1
-    thr = np.empty(n * n)
-    for j in range(-half, half + 1):
-        for i in range(-half, half + 1):
-            k = U((j + half) * n + i + half)
-            if i == 0 and j == 0:
-                thr[k] = inlier_px
-            else:
-                thr[k] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
-    W = U(w + 1)
-    un = U(n)
-    acc = np.empty(cand.size, dtype=np.int64)
-    na = 0
-    for k in range(cand.size):
-        c = cand[U(k)]
-        y = c // w
-        x = c - y * w
-        if y < half or y >= h - half or x < half or x >= w - half:
-            continue
-        a0 = U(y - half) * W + U(x - half)   # SAT (y0, x0)
-        b0 = a0 + un * W                     # SAT (y1, x0)
-        n_valid = sv[b0 + un] - sv[a0 + un] - sv[b0] + sv[a0]
-        if stray:
-            n_dots = sd[b0 + un] - sd[a0 + un] - sd[b0] + sd[a0]
-        else:
-            n_dots = n_valid
-        need = frac * n_dots
-        if n_valid <= need:
-            continue
-        mean = (ss[b0 + un] - ss[a0 + un] - ss[b0] + ss[a0]) / n_valid
-        top = sv[a0 + un] - sv[a0]
-        inl = 0
-        rb = U(y - half) * U(w) + U(x - half)
-        tb = U(0)
-        ra = a0
-        for _ in range(n):
-            row_inl = 0
-            if stray:
-                for i in range(n):
-                    p = rb + U(i)
-                    row_inl += 1 if of[p] & vf[p] & (abs(df[p] - mean) < thr[tb + U(i)]) else 0
-            else:  # every dot is valid: one mask load fewer
-                for i in range(n):
-                    p = rb + U(i)
-                    row_inl += 1 if of[p] & (abs(df[p] - mean) < thr[tb + U(i)]) else 0
-            inl += row_inl
-            if inl > need:
-                acc[na] = c
-                na += 1
-                break
-            ra += W
-            left = n_valid - (sv[ra + un] - sv[ra] - top)
-            if inl + left <= need:
-                break
-            rb += U(w)
-            tb += un
-    return acc[:na]
+def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow):  # pragma: no cover
+    """Summed-area table row y + 1 (flat offset r1) from row y (offset r0) and image row y:
+    valid dots (int32 sv), their disparities (float64 ss) and, if ``stray``, all dots
+    (int32 sd). ss is the row's running sum left to right added to the row above."""
+    p0 = U(y) * U(w)
+    # branch-free: the bits of d where a valid dot, +0.0 elsewhere (a bit mask, so NaN or
+    # inf off the dots never enters); s + 0.0 == s, so this is the skip-the-rest sum
+    for x in range(w):
+        p = p0 + U(x)
+        m = of[p] & vf[p]
+        mrow[U(x)] = m
+        brow[U(x)] = db[p] & (U(0) - U(m))
+    sv[r1] = 0
+    ss[r1] = 0.0
+    rv = np.int32(0)
+    rs = 0.0
+    for x in range(w):
+        ux = U(x)
+        rv += np.int32(mrow[ux])
+        rs += frow[ux]
+        sv[r1 + ux + U(1)] = rv
+        ss[r1 + ux + U(1)] = rs
+    for x in range(1, w + 1):
+        ux = U(x)
+        sv[r1 + ux] += sv[r0 + ux]
+        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
+    if stray:
+        sd[r1] = 0
+        rd = np.int32(0)
+        for x in range(w):
+            ux = U(x)
+            rd += np.int32(of[p0 + ux])
+            sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_splat(d, acc, splat_r):  # pragma: no cover
-    """Splat the accepted dots in raster order; returns (d_out, valid_out)."""
-    h, w = d.shape
-    out = np.zeros((h, w))
-    r = int(np.floor(splat_r))
-    r2max = splat_r * splat_r
-    if r2max > 254.0:
-        raise ValueError("correlation_window: splat radius above 15 px")
-    best = np.zeros((h, w), dtype=np.uint8)
-    outf = out.reshape(-1)
-    bestf = best.reshape(-1)
-    df = d.reshape(-1)
-    m = 0
-    for j in range(-r, r + 1):
-        for i in range(-r, r + 1):
-            if i * i + j * j <= r2max:
-                m += 1
-    oy = np.empty(m, dtype=np.int64)
-    ox = np.empty(m, dtype=np.int64)
-    of = np.empty(m, dtype=np.int64)
-    ow = np.empty(m, dtype=np.uint8)
-    m = 0
-    for j in range(-r, r + 1):
-        for i in range(-r, r + 1):
-            if i * i + j * j <= r2max:
-                oy[m] = j
-                ox[m] = i
-                of[m] = j * w + i
-                ow[m] = 255 - (i * i + j * j)
-                m += 1
-    for k in range(acc.size):
-        c = acc[k]
-        y = c // w
-        x = c - y * w
-        dc = df[c]
-        if r <= y < h - r and r <= x < w - r:
-            # branch-free: which splat wins is data-dependent, a branch mispredicts
-            for q in range(m):
-                p = U(c + of[U(q)])
-                o = ow[U(q)]
-                b = bestf[p]
-                t = o > b
-                bestf[p] = o if t else b
-                outf[p] = dc if t else outf[p]
-        else:
-            for q in range(m):
-                yy = y + oy[q]
-                xx = x + ox[q]
-                if 0 <= yy < h and 0 <= xx < w and ow[q] > best[yy, xx]:
-                    best[yy, xx] = ow[q]
-                    out[yy, xx] = dc
-    return out, best > 0
+def _cw_finish_row(yf, b, w, nvd, key, lo, hi, dacc, outf, okf):  # pragma: no cover
+    """Write image row yf from splat-key buffer row b (only its touched x range)."""
+    base = U(b * w)
+    p0 = U(yf) * U(w)
+    mask = (U(1) << U(40)) - U(1)
+    un = U(nvd)
+    for x in range(lo[b], hi[b] + 1):
+        kk = key[base + U(x)]
+        # low bits = nvd - (index of the dot in dacc); no splat: key 0 -> dacc[nvd] = 0
+        outf[p0 + U(x)] = dacc[un - (kk & mask)]
+        okf[p0 + U(x)] = np.uint8(kk != U(0))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -226,18 +95,184 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     holds a plain reference). Counts come from int32 tables; the table of all dots is
     built only when some dot is not valid (the shipped stage computes dots on valid
     pixels only, so there the valid-dot table serves both). The inlier scan reads the
-    window a row at a time and stops after the first row at which the verdict is certain
-    (it depends only on the total count). Indices are unsigned so that numba emits no
-    negative-index wraparound in the inner loops.
+    window a row at a time and stops once the verdict is certain (it depends only on the
+    total count, so when to check is free). A pixel keeps the largest splat key
+    (255 - r^2) << 40 | (n - k), k the dot's position in raster order: the max is
+    order-free and branch-free and picks what raster-order strict-greater updates keep.
+    The rows stream: the tables live in a ring of 2 half + 2 rows and the keys in a
+    buffer of 32 + 2 floor(splat_r) rows, so nothing image-sized is allocated but the
+    outputs (fresh pages cost a page fault each, once a third of the time). Indices are
+    unsigned so that numba emits no negative-index wraparound in the inner loops.
     """
     d = np.ascontiguousarray(d)
     valid = np.ascontiguousarray(valid)
     dots = np.ascontiguousarray(dots)
-    stray = _cw_has_stray(valid, dots)
-    sv, ss, cand = _cw_tables(d, valid, dots)
-    sd = _cw_dot_sat(dots) if stray else sv
-    acc = _cw_accept(d, valid, dots, sv, ss, sd, cand, stray, half, frac, inlier_px)
-    return _cw_splat(d, acc, splat_r)
+    h, w = d.shape
+    r = int(np.floor(splat_r))
+    r2max = splat_r * splat_r
+    if r2max > 254.0:
+        raise ValueError("correlation_window: splat radius above 15 px")
+    stray, nvd = _cw_count(valid, dots)
+    df = d.reshape(-1)
+    db = df.view(np.uint64)
+    vf = valid.reshape(-1).view(np.uint8)
+    of = dots.reshape(-1).view(np.uint8)
+    n = 2 * half + 1
+    un = U(n)
+    thr = np.empty(n * n)
+    for j in range(-half, half + 1):
+        for i in range(-half, half + 1):
+            t = U((j + half) * n + i + half)
+            if i == 0 and j == 0:
+                thr[t] = inlier_px
+            else:
+                thr[t] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
+    # summed-area tables: a ring of n + 1 rows, all that a window needs
+    R = n + 1
+    W = U(w + 1)
+    sv = np.zeros(R * (w + 1), dtype=np.int32)
+    ss = np.zeros(R * (w + 1))
+    sd = np.zeros(R * (w + 1) if stray else 1, dtype=np.int32)
+    mrow = np.empty(w, dtype=np.uint8)
+    brow = np.empty(w, dtype=np.uint64)
+    frow = brow.view(np.float64)
+    cx = np.empty(w, dtype=np.int64)
+    # splat footprint: offsets (flat in the key buffer, width w) and rank << 40
+    m = 0
+    for j in range(-r, r + 1):
+        for i in range(-r, r + 1):
+            if i * i + j * j <= r2max:
+                m += 1
+    oy = np.empty(m, dtype=np.int64)
+    ox = np.empty(m, dtype=np.int64)
+    ofs = np.empty(m, dtype=np.int64)
+    rk = np.empty(m, dtype=np.uint64)
+    m = 0
+    for j in range(-r, r + 1):
+        for i in range(-r, r + 1):
+            if i * i + j * j <= r2max:
+                oy[m] = j
+                ox[m] = i
+                ofs[m] = j * w + i
+                rk[m] = U(255 - (i * i + j * j)) << U(40)
+                m += 1
+    # splat keys for image rows boff .. boff + BR - 1, B rows written out at a time
+    B = 32
+    BR = B + 2 * r
+    key = np.zeros(BR * w, dtype=np.uint64)
+    lo = np.full(BR, w, dtype=np.int64)
+    hi = np.full(BR, -1, dtype=np.int64)
+    boff = -r
+    dacc = np.empty(nvd + 1)  # disparities of the accepted dots; dacc[nvd] = 0: no splat
+    dacc[nvd] = 0.0
+    na = 0
+    out = np.zeros((h, w))
+    ok = np.zeros((h, w), dtype=np.bool_)
+    outf = out.reshape(-1)
+    okf = ok.reshape(-1).view(np.uint8)
+    built = 0  # SAT rows 0 .. built are in the ring
+    for y in range(h):
+        while built < min(y + half + 1, h):
+            r0 = U(built % R) * W
+            r1 = U((built + 1) % R) * W
+            _cw_sat_row(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, mrow, brow, frow)
+            built += 1
+        if half <= y < h - half:
+            p0 = U(y) * U(w)
+            nc = 0
+            for x in range(half, w - half):
+                p = p0 + U(x)
+                cx[nc] = x
+                nc += np.int64(of[p] & vf[p])
+            s0 = (y - half) % R
+            a_row = U(s0) * W
+            b_row = U((y + half + 1) % R) * W
+            xmin = w
+            xmax = -1
+            for k in range(nc):
+                x = cx[k]
+                a0 = a_row + U(x - half)
+                b0 = b_row + U(x - half)
+                n_valid = sv[b0 + un] - sv[a0 + un] - sv[b0] + sv[a0]
+                if stray:
+                    n_dots = sd[b0 + un] - sd[a0 + un] - sd[b0] + sd[a0]
+                else:
+                    n_dots = n_valid
+                need = frac * n_dots
+                if n_valid <= need:
+                    continue
+                mean = (ss[b0 + un] - ss[a0 + un] - ss[b0] + ss[a0]) / n_valid
+                top = sv[a0 + un] - sv[a0]
+                inl = 0
+                rb = U(y - half) * U(w) + U(x - half)
+                tb = U(0)
+                accepted = False
+                # the verdict depends only on the total, so checking it after every row
+                # is only for speed; before the middle row it rarely is certain
+                for j in range(n):
+                    row_inl = 0
+                    if stray:
+                        for i in range(n):
+                            p = rb + U(i)
+                            inlier = abs(df[p] - mean) < thr[tb + U(i)]
+                            row_inl += 1 if of[p] & vf[p] & inlier else 0
+                    else:
+                        for i in range(n):
+                            p = rb + U(i)
+                            inlier = abs(df[p] - mean) < thr[tb + U(i)]
+                            row_inl += 1 if of[p] & inlier else 0
+                    inl += row_inl
+                    rb += U(w)
+                    tb += un
+                    if j < half:
+                        continue
+                    if inl > need:
+                        accepted = True
+                        break
+                    sj = s0 + j + 1
+                    sj = sj - R if sj >= R else sj
+                    ra = U(sj) * W + U(x - half)
+                    left = n_valid - (sv[ra + un] - sv[ra] - top)
+                    if inl + left <= need:
+                        break
+                if not accepted:
+                    continue
+                dacc[na] = df[p0 + U(x)]
+                low = U(nvd - na)
+                na += 1
+                xmin = min(xmin, x)
+                xmax = max(xmax, x)
+                if r <= y < h - r and r <= x < w - r:
+                    pc = (y - boff) * w + x
+                    for q in range(m):
+                        pq = U(pc + ofs[U(q)])
+                        key[pq] = max(key[pq], rk[U(q)] | low)
+                else:
+                    for q in range(m):
+                        yy = y + oy[q]
+                        xx = x + ox[q]
+                        if 0 <= yy < h and 0 <= xx < w:
+                            pq = U((yy - boff) * w + xx)
+                            key[pq] = max(key[pq], rk[U(q)] | low)
+            if xmin <= xmax:
+                for yy in range(y - r - boff, y + r + 1 - boff):
+                    lo[yy] = min(lo[yy], max(xmin - r, 0))
+                    hi[yy] = max(hi[yy], min(xmax + r, w - 1))
+        # rows up to y - r can get no more splats: write out a block, shift the buffer
+        if y - r == boff + B - 1:
+            for b in range(B):
+                if boff + b >= 0:
+                    _cw_finish_row(boff + b, b, w, nvd, key, lo, hi, dacc, outf, okf)
+            key[:2 * r * w] = key[B * w:]
+            key[2 * r * w:] = 0
+            lo[:2 * r] = lo[B:]
+            hi[:2 * r] = hi[B:]
+            lo[2 * r:] = w
+            hi[2 * r:] = -1
+            boff += B
+    for yf in range(max(boff, 0), h):
+        _cw_finish_row(yf, yf - boff, w, nvd, key, lo, hi, dacc, outf, okf)
+    return out, ok
 
 
 @numba.njit(cache=True, nogil=True)
