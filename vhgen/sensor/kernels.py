@@ -10,19 +10,6 @@ U = np.uint64
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_count(valid, dots):  # pragma: no cover
-    """(some dot falls on an invalid pixel, number of valid dots); branch-free."""
-    vf = valid.reshape(-1).view(np.uint8)
-    of = dots.reshape(-1).view(np.uint8)
-    stray = np.uint8(0)
-    nvd = 0
-    for i in range(vf.size):
-        stray |= of[U(i)] & ~vf[U(i)]
-        nvd += np.int64(of[U(i)] & vf[U(i)])
-    return stray != 0, nvd
-
-
-@numba.njit(cache=True, nogil=True)
 def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow):  # pragma: no cover
     """Summed-area table row y + 1 (flat offset r1) from row y (offset r0) and image row y:
     valid dots (int32 sv), their disparities (float64 ss) and, if ``stray``, all dots
@@ -30,11 +17,17 @@ def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow): 
     p0 = U(y) * U(w)
     # branch-free: the bits of d where a valid dot, +0.0 elsewhere (a bit mask, so NaN or
     # inf off the dots never enters); s + 0.0 == s, so this is the skip-the-rest sum
+    st = np.uint8(0)
     for x in range(w):
         p = p0 + U(x)
         m = of[p] & vf[p]
+        st |= of[p] & ~vf[p]
         mrow[U(x)] = m
         brow[U(x)] = db[p] & (U(0) - U(m))
+    if st != 0 and not stray:
+        # first dot off the valid pixels: above it the dot table equals the valid-dot one
+        sd[:] = sv
+        stray = True
     sv[r1] = 0
     ss[r1] = 0.0
     rv = np.int32(0)
@@ -56,19 +49,84 @@ def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow): 
             ux = U(x)
             rd += np.int32(of[p0 + ux])
             sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
+    return stray
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_finish_row(yf, b, w, nvd, key, lo, hi, dacc, outf, okf):  # pragma: no cover
+def _cw_sat_pair(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, r2, mrow, brow, frow,
+                 mrow2, brow2, frow2):  # pragma: no cover
+    """Summed-area table rows y + 1 and y + 2 (offsets r1, r2) as _cw_sat_row does, the
+    two running sums interleaved: they are independent, so their float-add latencies
+    overlap (the order of each row's own sum is unchanged)."""
+    p0 = U(y) * U(w)
+    p1 = p0 + U(w)
+    st = np.uint8(0)
+    for x in range(w):
+        p = p0 + U(x)
+        m = of[p] & vf[p]
+        st |= of[p] & ~vf[p]
+        mrow[U(x)] = m
+        brow[U(x)] = db[p] & (U(0) - U(m))
+        p = p1 + U(x)
+        m = of[p] & vf[p]
+        st |= of[p] & ~vf[p]
+        mrow2[U(x)] = m
+        brow2[U(x)] = db[p] & (U(0) - U(m))
+    if st != 0 and not stray:
+        sd[:] = sv  # as in _cw_sat_row
+        stray = True
+    sv[r1] = 0
+    ss[r1] = 0.0
+    sv[r2] = 0
+    ss[r2] = 0.0
+    rv = np.int32(0)
+    rs = 0.0
+    rv2 = np.int32(0)
+    rs2 = 0.0
+    for x in range(w):
+        ux = U(x)
+        rv += np.int32(mrow[ux])
+        rs += frow[ux]
+        rv2 += np.int32(mrow2[ux])
+        rs2 += frow2[ux]
+        sv[r1 + ux + U(1)] = rv
+        ss[r1 + ux + U(1)] = rs
+        sv[r2 + ux + U(1)] = rv2
+        ss[r2 + ux + U(1)] = rs2
+    for x in range(1, w + 1):
+        ux = U(x)
+        sv[r1 + ux] += sv[r0 + ux]
+        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
+    for x in range(1, w + 1):
+        ux = U(x)
+        sv[r2 + ux] += sv[r1 + ux]
+        ss[r2 + ux] = ss[r1 + ux] + ss[r2 + ux]
+    if stray:
+        for yy in range(2):
+            q0 = r0 if yy == 0 else r1
+            q1 = r1 if yy == 0 else r2
+            pp = p0 if yy == 0 else p1
+            sd[q1] = 0
+            rd = np.int32(0)
+            for x in range(w):
+                ux = U(x)
+                rd += np.int32(of[pp + ux])
+                sd[q1 + ux + U(1)] = sd[q0 + ux + U(1)] + rd
+    return stray
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_finish_row(yf, b, w, big, na, key, lo, hi, dacc, outf, okf):  # pragma: no cover
     """Write image row yf from splat-key buffer row b (only its touched x range)."""
     base = U(b * w)
     p0 = U(yf) * U(w)
     mask = (U(1) << U(40)) - U(1)
-    un = U(nvd)
+    ub = U(big)
+    una = U(na)
     for x in range(lo[b], hi[b] + 1):
         kk = key[base + U(x)]
-        # low bits = nvd - (index of the dot in dacc); no splat: key 0 -> dacc[nvd] = 0
-        outf[p0 + U(x)] = dacc[un - (kk & mask)]
+        # low bits = big - (index of the dot in dacc); no splat: key 0 -> dacc[na] = 0
+        outf[p0 + U(x)] = dacc[min(ub - (kk & mask), una)]
         okf[p0 + U(x)] = np.uint8(kk != U(0))
 
 
@@ -93,16 +151,17 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     (S[y1, x1] - S[y0, x1] - S[y1, x0] + S[y0, x0]) / n_valid in that order, so it is the
     same number whatever the implementation (tests/sensor/test_correlation_window.py
     holds a plain reference). Counts come from int32 tables; the table of all dots is
-    built only when some dot is not valid (the shipped stage computes dots on valid
-    pixels only, so there the valid-dot table serves both). The inlier scan reads the
-    window a row at a time and stops once the verdict is certain (it depends only on the
-    total count, so when to check is free). A pixel keeps the largest splat key
-    (255 - r^2) << 40 | (n - k), k the dot's position in raster order: the max is
-    order-free and branch-free and picks what raster-order strict-greater updates keep.
-    The rows stream: the tables live in a ring of 2 half + 2 rows and the keys in a
-    buffer of 32 + 2 floor(splat_r) rows, so nothing image-sized is allocated but the
-    outputs (fresh pages cost a page fault each, once a third of the time). Indices are
-    unsigned so that numba emits no negative-index wraparound in the inner loops.
+    built only from the first row with a dot off the valid pixels (above it, it equals
+    the valid-dot table; the shipped stage computes dots on valid pixels only). The
+    inlier scan reads the window a row at a time and stops once the verdict is certain
+    (it depends only on the total count, so when to check is free). A pixel keeps the
+    largest splat key (255 - r^2) << 40 | (H W - k), k the dot's position in raster
+    order: the max is order-free and branch-free and picks what raster-order
+    strict-greater updates keep. The rows stream: the tables live in a ring of
+    2 half + 3 rows and the keys in a buffer of 32 + 2 floor(splat_r) rows, so nothing
+    image-sized is allocated but the outputs (fresh pages cost a page fault each, once a
+    third of the time). Indices are unsigned so that numba emits no negative-index
+    wraparound in the inner loops.
     """
     d = np.ascontiguousarray(d)
     valid = np.ascontiguousarray(valid)
@@ -112,7 +171,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     r2max = splat_r * splat_r
     if r2max > 254.0:
         raise ValueError("correlation_window: splat radius above 15 px")
-    stray, nvd = _cw_count(valid, dots)
+    stray = False  # set on the first dot off the valid pixels
     df = d.reshape(-1)
     db = df.view(np.uint64)
     vf = valid.reshape(-1).view(np.uint8)
@@ -127,15 +186,18 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 thr[t] = inlier_px
             else:
                 thr[t] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
-    # summed-area tables: a ring of n + 1 rows, all that a window needs
-    R = n + 1
+    # summed-area tables: a ring of rows, n + 1 are all that a window needs
+    R = n + 2  # rows are built in pairs, so one may be built ahead
     W = U(w + 1)
     sv = np.zeros(R * (w + 1), dtype=np.int32)
     ss = np.zeros(R * (w + 1))
-    sd = np.zeros(R * (w + 1) if stray else 1, dtype=np.int32)
+    sd = np.zeros(R * (w + 1), dtype=np.int32)
     mrow = np.empty(w, dtype=np.uint8)
     brow = np.empty(w, dtype=np.uint64)
     frow = brow.view(np.float64)
+    mrow2 = np.empty(w, dtype=np.uint8)
+    brow2 = np.empty(w, dtype=np.uint64)
+    frow2 = brow2.view(np.float64)
     cx = np.empty(w, dtype=np.int64)
     # splat footprint: offsets (flat in the key buffer, width w) and rank << 40
     m = 0
@@ -156,6 +218,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 ofs[m] = j * w + i
                 rk[m] = U(255 - (i * i + j * j)) << U(40)
                 m += 1
+    r = max(r, 0)  # splat_r < 0: no footprint, and the buffer geometry of r = 0
     # splat keys for image rows boff .. boff + BR - 1, B rows written out at a time
     B = 32
     BR = B + 2 * r
@@ -163,8 +226,10 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     lo = np.full(BR, w, dtype=np.int64)
     hi = np.full(BR, -1, dtype=np.int64)
     boff = -r
-    dacc = np.empty(nvd + 1)  # disparities of the accepted dots; dacc[nvd] = 0: no splat
-    dacc[nvd] = 0.0
+    # disparities of the accepted dots, then a 0 that a key of 0 (no splat) points to
+    dacc = np.empty(4096)
+    dacc[0] = 0.0
+    big = h * w  # above any dot count
     na = 0
     out = np.zeros((h, w))
     ok = np.zeros((h, w), dtype=np.bool_)
@@ -175,8 +240,15 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
         while built < min(y + half + 1, h):
             r0 = U(built % R) * W
             r1 = U((built + 1) % R) * W
-            _cw_sat_row(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, mrow, brow, frow)
-            built += 1
+            if built + 2 <= h:
+                r2 = U((built + 2) % R) * W
+                stray = _cw_sat_pair(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, r2,
+                                     mrow, brow, frow, mrow2, brow2, frow2)
+                built += 2
+            else:
+                stray = _cw_sat_row(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, mrow, brow,
+                                    frow)
+                built += 1
         if half <= y < h - half:
             p0 = U(y) * U(w)
             nc = 0
@@ -184,6 +256,10 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 p = p0 + U(x)
                 cx[nc] = x
                 nc += np.int64(of[p] & vf[p])
+            if na + nc + 1 > dacc.size:  # room for every candidate of the row
+                grown = np.empty(max(2 * dacc.size, na + nc + 1))
+                grown[:na + 1] = dacc[:na + 1]
+                dacc = grown
             s0 = (y - half) % R
             a_row = U(s0) * W
             b_row = U((y + half + 1) % R) * W
@@ -220,7 +296,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                         for i in range(n):
                             p = rb + U(i)
                             inlier = abs(df[p] - mean) < thr[tb + U(i)]
-                            row_inl += 1 if of[p] & inlier else 0
+                            row_inl += np.int64(of[p] & np.uint8(inlier))
                     inl += row_inl
                     rb += U(w)
                     tb += un
@@ -238,8 +314,9 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 if not accepted:
                     continue
                 dacc[na] = df[p0 + U(x)]
-                low = U(nvd - na)
+                low = U(big - na)
                 na += 1
+                dacc[na] = 0.0
                 xmin = min(xmin, x)
                 xmax = max(xmax, x)
                 if r <= y < h - r and r <= x < w - r:
@@ -262,7 +339,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
         if y - r == boff + B - 1:
             for b in range(B):
                 if boff + b >= 0:
-                    _cw_finish_row(boff + b, b, w, nvd, key, lo, hi, dacc, outf, okf)
+                    _cw_finish_row(boff + b, b, w, big, na, key, lo, hi, dacc, outf, okf)
             key[:2 * r * w] = key[B * w:]
             key[2 * r * w:] = 0
             lo[:2 * r] = lo[B:]
@@ -271,7 +348,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             hi[2 * r:] = -1
             boff += B
     for yf in range(max(boff, 0), h):
-        _cw_finish_row(yf, yf - boff, w, nvd, key, lo, hi, dacc, outf, okf)
+        _cw_finish_row(yf, yf - boff, w, big, na, key, lo, hi, dacc, outf, okf)
     return out, ok
 
 
