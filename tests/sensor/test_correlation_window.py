@@ -88,7 +88,8 @@ def scene(rng: np.random.Generator, h: int, w: int, p_valid: float, p_dot: float
     return d, valid, dots
 
 
-def check(d, valid, dots, half, frac, inlier_px, splat_r) -> tuple[np.ndarray, np.ndarray]:
+def check(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int, frac: float,
+          inlier_px: float, splat_r: float) -> tuple[np.ndarray, np.ndarray]:
     got_d, got_v = correlation_window(d, valid, dots, half, frac, inlier_px, splat_r)
     ref_d, ref_v = reference(d, valid, dots, half, frac, inlier_px, splat_r)
     assert got_v.dtype == np.bool_ and got_d.dtype == np.float64

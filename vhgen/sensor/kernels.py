@@ -10,13 +10,11 @@ U = np.uint64
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow):  # pragma: no cover
-    """Summed-area table row y + 1 (flat offset r1) from row y (offset r0) and image row y:
-    valid dots (int32 sv), their disparities (float64 ss) and, if ``stray``, all dots
-    (int32 sd). ss is the row's running sum left to right added to the row above."""
-    p0 = U(y) * U(w)
-    # branch-free: the bits of d where a valid dot, +0.0 elsewhere (a bit mask, so NaN or
-    # inf off the dots never enters); s + 0.0 == s, so this is the skip-the-rest sum
+def _cw_mask_row(db, vf, of, p0, w, mrow, brow):  # pragma: no cover
+    """Image row at flat offset p0: mrow = valid dot (0/1), brow = the bits of d where a
+    valid dot, of +0.0 elsewhere. Branch-free; a bit mask, so NaN or inf off the dots
+    never enters, and s + 0.0 == s, so summing brow is the skip-the-rest sum. Returns
+    whether a dot falls on an invalid pixel."""
     st = np.uint8(0)
     for x in range(w):
         p = p0 + U(x)
@@ -24,7 +22,37 @@ def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow): 
         st |= of[p] & ~vf[p]
         mrow[U(x)] = m
         brow[U(x)] = db[p] & (U(0) - U(m))
-    if st != 0 and not stray:
+    return st != 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_col_add(sv, ss, r0, r1, w):  # pragma: no cover
+    """Table row at r1 (the row's running sums) += table row at r0 (the row above)."""
+    for x in range(1, w + 1):
+        ux = U(x)
+        sv[r1 + ux] += sv[r0 + ux]
+        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_dot_row(of, p0, w, sd, r0, r1):  # pragma: no cover
+    """All-dot table row at r1 from the row at r0 and the image row at flat offset p0."""
+    sd[r1] = 0
+    rd = np.int32(0)
+    for x in range(w):
+        ux = U(x)
+        rd += np.int32(of[p0 + ux])
+        sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow):  # pragma: no cover
+    """Summed-area table row y + 1 (flat offset r1) from row y (offset r0) and image row y:
+    valid dots (int32 sv), their disparities (float64 ss) and, once ``stray`` (some dot
+    off the valid pixels so far), all dots (int32 sd). ss is the row's running sum left
+    to right added to the row above. Returns the updated ``stray``."""
+    p0 = U(y) * U(w)
+    if _cw_mask_row(db, vf, of, p0, w, mrow, brow) and not stray:
         # first dot off the valid pixels: above it the dot table equals the valid-dot one
         sd[:] = sv
         stray = True
@@ -38,17 +66,9 @@ def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow): 
         rs += frow[ux]
         sv[r1 + ux + U(1)] = rv
         ss[r1 + ux + U(1)] = rs
-    for x in range(1, w + 1):
-        ux = U(x)
-        sv[r1 + ux] += sv[r0 + ux]
-        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
+    _cw_col_add(sv, ss, r0, r1, w)
     if stray:
-        sd[r1] = 0
-        rd = np.int32(0)
-        for x in range(w):
-            ux = U(x)
-            rd += np.int32(of[p0 + ux])
-            sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
+        _cw_dot_row(of, p0, w, sd, r0, r1)
     return stray
 
 
@@ -60,19 +80,9 @@ def _cw_sat_pair(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, r2, mrow, brow, fr
     overlap (the order of each row's own sum is unchanged)."""
     p0 = U(y) * U(w)
     p1 = p0 + U(w)
-    st = np.uint8(0)
-    for x in range(w):
-        p = p0 + U(x)
-        m = of[p] & vf[p]
-        st |= of[p] & ~vf[p]
-        mrow[U(x)] = m
-        brow[U(x)] = db[p] & (U(0) - U(m))
-        p = p1 + U(x)
-        m = of[p] & vf[p]
-        st |= of[p] & ~vf[p]
-        mrow2[U(x)] = m
-        brow2[U(x)] = db[p] & (U(0) - U(m))
-    if st != 0 and not stray:
+    st0 = _cw_mask_row(db, vf, of, p0, w, mrow, brow)
+    st1 = _cw_mask_row(db, vf, of, p1, w, mrow2, brow2)
+    if (st0 or st1) and not stray:
         sd[:] = sv  # as in _cw_sat_row
         stray = True
     sv[r1] = 0
@@ -93,25 +103,11 @@ def _cw_sat_pair(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, r2, mrow, brow, fr
         ss[r1 + ux + U(1)] = rs
         sv[r2 + ux + U(1)] = rv2
         ss[r2 + ux + U(1)] = rs2
-    for x in range(1, w + 1):
-        ux = U(x)
-        sv[r1 + ux] += sv[r0 + ux]
-        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
-    for x in range(1, w + 1):
-        ux = U(x)
-        sv[r2 + ux] += sv[r1 + ux]
-        ss[r2 + ux] = ss[r1 + ux] + ss[r2 + ux]
+    _cw_col_add(sv, ss, r0, r1, w)
+    _cw_col_add(sv, ss, r1, r2, w)
     if stray:
-        for yy in range(2):
-            q0 = r0 if yy == 0 else r1
-            q1 = r1 if yy == 0 else r2
-            pp = p0 if yy == 0 else p1
-            sd[q1] = 0
-            rd = np.int32(0)
-            for x in range(w):
-                ux = U(x)
-                rd += np.int32(of[pp + ux])
-                sd[q1 + ux + U(1)] = sd[q0 + ux + U(1)] + rd
+        _cw_dot_row(of, p0, w, sd, r0, r1)
+        _cw_dot_row(of, p1, w, sd, r1, r2)
     return stray
 
 
