@@ -5,8 +5,128 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+# unsigned index type: numba adds a negative-index wraparound to every signed index
+U = np.uint64
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
+
+@numba.njit(cache=True, nogil=True)
+def _cw_mask_row(db, vf, of, p0, w, mrow, brow):  # pragma: no cover
+    """Image row at flat offset p0: mrow = valid dot (0/1), brow = the bits of d where a
+    valid dot, of +0.0 elsewhere. Branch-free; a bit mask, so NaN or inf off the dots
+    never enters, and s + 0.0 == s, so summing brow is the skip-the-rest sum. Returns
+    whether a dot falls on an invalid pixel."""
+    st = np.uint8(0)
+    for x in range(w):
+        p = p0 + U(x)
+        m = of[p] & vf[p]
+        st |= of[p] & ~vf[p]
+        mrow[U(x)] = m
+        brow[U(x)] = db[p] & (U(0) - U(m))
+    return st != 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_col_add(sv, ss, r0, r1, w):  # pragma: no cover
+    """Table row at r1 (the row's running sums) += table row at r0 (the row above)."""
+    for x in range(1, w + 1):
+        ux = U(x)
+        sv[r1 + ux] += sv[r0 + ux]
+        ss[r1 + ux] = ss[r0 + ux] + ss[r1 + ux]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_dot_row(of, p0, w, sd, r0, r1):  # pragma: no cover
+    """All-dot table row at r1 from the row at r0 and the image row at flat offset p0."""
+    sd[r1] = 0
+    rd = np.int32(0)
+    for x in range(w):
+        ux = U(x)
+        rd += np.int32(of[p0 + ux])
+        sd[r1 + ux + U(1)] = sd[r0 + ux + U(1)] + rd
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_sat_row(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, mrow, brow, frow):  # pragma: no cover
+    """Summed-area table row y + 1 (flat offset r1) from row y (offset r0) and image row y:
+    valid dots (int32 sv), their disparities (float64 ss) and, once ``stray`` (some dot
+    off the valid pixels so far), all dots (int32 sd). ss is the row's running sum left
+    to right added to the row above. Returns the updated ``stray``."""
+    p0 = U(y) * U(w)
+    if _cw_mask_row(db, vf, of, p0, w, mrow, brow) and not stray:
+        # first dot off the valid pixels: above it the dot table equals the valid-dot one
+        sd[:] = sv
+        stray = True
+    sv[r1] = 0
+    ss[r1] = 0.0
+    rv = np.int32(0)
+    rs = 0.0
+    for x in range(w):
+        ux = U(x)
+        rv += np.int32(mrow[ux])
+        rs += frow[ux]
+        sv[r1 + ux + U(1)] = rv
+        ss[r1 + ux + U(1)] = rs
+    _cw_col_add(sv, ss, r0, r1, w)
+    if stray:
+        _cw_dot_row(of, p0, w, sd, r0, r1)
+    return stray
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_sat_pair(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, r2, mrow, brow, frow,
+                 mrow2, brow2, frow2):  # pragma: no cover
+    """Summed-area table rows y + 1 and y + 2 (offsets r1, r2) as _cw_sat_row does, the
+    two running sums interleaved: they are independent, so their float-add latencies
+    overlap (the order of each row's own sum is unchanged)."""
+    p0 = U(y) * U(w)
+    p1 = p0 + U(w)
+    st0 = _cw_mask_row(db, vf, of, p0, w, mrow, brow)
+    st1 = _cw_mask_row(db, vf, of, p1, w, mrow2, brow2)
+    if (st0 or st1) and not stray:
+        sd[:] = sv  # as in _cw_sat_row
+        stray = True
+    sv[r1] = 0
+    ss[r1] = 0.0
+    sv[r2] = 0
+    ss[r2] = 0.0
+    rv = np.int32(0)
+    rs = 0.0
+    rv2 = np.int32(0)
+    rs2 = 0.0
+    for x in range(w):
+        ux = U(x)
+        rv += np.int32(mrow[ux])
+        rs += frow[ux]
+        rv2 += np.int32(mrow2[ux])
+        rs2 += frow2[ux]
+        sv[r1 + ux + U(1)] = rv
+        ss[r1 + ux + U(1)] = rs
+        sv[r2 + ux + U(1)] = rv2
+        ss[r2 + ux + U(1)] = rs2
+    _cw_col_add(sv, ss, r0, r1, w)
+    _cw_col_add(sv, ss, r1, r2, w)
+    if stray:
+        _cw_dot_row(of, p0, w, sd, r0, r1)
+        _cw_dot_row(of, p1, w, sd, r1, r2)
+    return stray
+
+
+@numba.njit(cache=True, nogil=True)
+def _cw_finish_row(yf, b, w, big, na, key, lo, hi, dacc, outf, okf):  # pragma: no cover
+    """Write image row yf from splat-key buffer row b (only its touched x range)."""
+    base = U(b * w)
+    p0 = U(yf) * U(w)
+    mask = (U(1) << U(40)) - U(1)
+    ub = U(big)
+    una = U(na)
+    for x in range(lo[b], hi[b] + 1):
+        kk = key[base + U(x)]
+        # low bits = big - (index of the dot in dacc); no splat: key 0 -> dacc[na] = 0
+        outf[p0 + U(x)] = dacc[min(ub - (kk & mask), una)]
+        okf[p0 + U(x)] = np.uint8(kk != U(0))
+
+
+@numba.njit(cache=True, nogil=True)
 def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragma: no cover
     """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
 
@@ -15,56 +135,67 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     ``half`` px from the border: among the dots of its (2 half + 1)^2 window, the valid ones
     must exceed ``frac`` x the window's dots; their mean m is taken, and dots with
     |d - m| * w(x, y) < inlier_px, w = 1 / ((1.2 x)^2 + (1.2 y)^2) (w(0, 0) = 1), are
-    inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats its
-    own disparity to every pixel within ``splat_r`` px, where the splat weight 1 / (1 + r^2)
-    beats what the pixel already holds. Pixels no accepted dot reaches are holes.
-    Window counts and sums come from summed-area tables (O(1) per pixel); the inliers are
-    counted a window row at a time, branch-free inside the row (the row is contiguous, so
-    the compiler vectorises it), and the scan stops after the first row at which the
-    verdict is certain. The verdict depends only on the total inlier count, so the order
-    of the count does not change it. Returns (d_out, valid_out); d_out is 0 where
-    valid_out is False.
+    inliers, which must also exceed ``frac`` x the window's dots. An accepted dot splats
+    its own disparity to every pixel within ``splat_r`` px (ValueError above
+    sqrt(254) ~ 15.9 px), where the splat weight 1 / (1 + r^2) beats what the pixel
+    already holds (dots splat in raster order, so on a tie the earlier dot keeps the
+    pixel). Pixels no accepted dot reaches are holes. Returns (d_out, valid_out); d_out is
+    0 where valid_out is False.
+
+    The window sum of disparities is a float64 summed-area table: per row the running sum
+    of d over the valid dots left to right, added to the table row above. The mean is
+    (S[y1, x1] - S[y0, x1] - S[y1, x0] + S[y0, x0]) / n_valid in that order, so it is the
+    same number whatever the implementation (tests/sensor/test_correlation_window.py
+    holds a plain reference). Counts come from int32 tables; the table of all dots is
+    built only from the first row with a dot off the valid pixels (above it, it equals
+    the valid-dot table; the shipped stage computes dots on valid pixels only). The
+    inlier scan reads the window a row at a time and stops once the verdict is certain
+    (it depends only on the total count, so when to check is free). A pixel keeps the
+    largest splat key (255 - r^2) << 40 | (H W - k), k the dot's position in raster
+    order: the max is order-free and branch-free and picks what raster-order
+    strict-greater updates keep. The rows stream: the tables live in a ring of
+    2 half + 3 rows and the keys in a buffer of 32 + 2 floor(splat_r) rows, so nothing
+    image-sized is allocated but the outputs (fresh pages cost a page fault each, once a
+    third of the time). Indices are unsigned so that numba emits no negative-index
+    wraparound in the inner loops.
     """
+    d = np.ascontiguousarray(d)
+    valid = np.ascontiguousarray(valid)
+    dots = np.ascontiguousarray(dots)
     h, w = d.shape
-    # summed-area tables of dots, valid dots and their disparities
-    sd = np.zeros((h + 1, w + 1), dtype=np.int32)
-    sv = np.zeros((h + 1, w + 1), dtype=np.int32)
-    ss = np.zeros((h + 1, w + 1))
-    dv = np.zeros((h, w), dtype=np.bool_)  # a valid dot
-    for y in range(h):
-        rd = 0
-        rv = 0
-        rs = 0.0
-        for x in range(w):
-            if dots[y, x]:
-                rd += 1
-                if valid[y, x]:
-                    dv[y, x] = True
-                    rv += 1
-                    rs += d[y, x]
-            sd[y + 1, x + 1] = sd[y, x + 1] + rd
-            sv[y + 1, x + 1] = sv[y, x + 1] + rv
-            ss[y + 1, x + 1] = ss[y, x + 1] + rs
-    n = 2 * half + 1
-    thr = np.empty((n, n))  # |d - m| < thr[j, i]  <=>  |d - m| * w(i, j) < inlier_px
-    for j in range(-half, half + 1):
-        for i in range(-half, half + 1):
-            if i == 0 and j == 0:
-                thr[j + half, i + half] = inlier_px
-            else:
-                thr[j + half, i + half] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
-    out = np.zeros((h, w))
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
     if r2max > 254.0:
         raise ValueError("correlation_window: splat radius above 15 px")
-    # The splat weight 1 / (1 + r^2) falls strictly with the integer r^2, so the pixel
-    # keeps the splat of smallest r^2: stored as the rank 255 - r^2 (0 = no splat yet),
-    # uint8, so the whole array stays in cache, instead of the float64 weight.
-    best = np.zeros((h, w), dtype=np.uint8)
-    outf = out.reshape(-1)
-    bestf = best.reshape(-1)
-    # splat footprint: offsets within the radius and their ranks
+    stray = False  # set on the first dot off the valid pixels
+    df = d.reshape(-1)
+    db = df.view(np.uint64)
+    vf = valid.reshape(-1).view(np.uint8)
+    of = dots.reshape(-1).view(np.uint8)
+    n = 2 * half + 1
+    un = U(n)
+    thr = np.empty(n * n)
+    for j in range(-half, half + 1):
+        for i in range(-half, half + 1):
+            t = U((j + half) * n + i + half)
+            if i == 0 and j == 0:
+                thr[t] = inlier_px
+            else:
+                thr[t] = inlier_px * ((1.2 * i) ** 2 + (1.2 * j) ** 2)
+    # summed-area tables: a ring of rows, n + 1 are all that a window needs
+    R = n + 2  # rows are built in pairs, so one may be built ahead
+    W = U(w + 1)
+    sv = np.zeros(R * (w + 1), dtype=np.int32)
+    ss = np.zeros(R * (w + 1))
+    sd = np.zeros(R * (w + 1), dtype=np.int32)
+    mrow = np.empty(w, dtype=np.uint8)
+    brow = np.empty(w, dtype=np.uint64)
+    frow = brow.view(np.float64)
+    mrow2 = np.empty(w, dtype=np.uint8)
+    brow2 = np.empty(w, dtype=np.uint64)
+    frow2 = brow2.view(np.float64)
+    cx = np.empty(w, dtype=np.int64)
+    # splat footprint: offsets (flat in the key buffer, width w) and rank << 40
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
@@ -72,68 +203,149 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 m += 1
     oy = np.empty(m, dtype=np.int64)
     ox = np.empty(m, dtype=np.int64)
-    of = np.empty(m, dtype=np.int64)
-    ow = np.empty(m, dtype=np.uint8)
+    ofs = np.empty(m, dtype=np.int64)
+    rk = np.empty(m, dtype=np.uint64)
     m = 0
     for j in range(-r, r + 1):
         for i in range(-r, r + 1):
             if i * i + j * j <= r2max:
                 oy[m] = j
                 ox[m] = i
-                of[m] = j * w + i
-                ow[m] = 255 - (i * i + j * j)
+                ofs[m] = j * w + i
+                rk[m] = U(255 - (i * i + j * j)) << U(40)
                 m += 1
-    for y in range(half, h - half):
-        y0 = y - half
-        y1 = y + half + 1
-        for x in range(half, w - half):
-            if not dv[y, x]:
-                continue
-            x0 = x - half
-            x1 = x + half + 1
-            n_dots = sd[y1, x1] - sd[y0, x1] - sd[y1, x0] + sd[y0, x0]
-            n_valid = sv[y1, x1] - sv[y0, x1] - sv[y1, x0] + sv[y0, x0]
-            need = frac * n_dots
-            if n_valid <= need:
-                continue
-            mean = (ss[y1, x1] - ss[y0, x1] - ss[y1, x0] + ss[y0, x0]) / n_valid
-            inl = 0
-            left = n_valid
-            accepted = False
-            for j in range(n):
-                yy = y0 + j
-                row_dots = 0
-                row_inl = 0
-                for i in range(n):
-                    is_dot = dv[yy, x0 + i]
-                    inlier = abs(d[yy, x0 + i] - mean) < thr[j, i]
-                    row_dots += 1 if is_dot else 0
-                    row_inl += 1 if is_dot and inlier else 0
-                inl += row_inl
-                left -= row_dots
-                if inl > need:
-                    accepted = True
-                    break
-                if inl + left <= need:
-                    break
-            if not accepted:
-                continue
-            dc = d[y, x]
-            c = y * w + x
-            if r <= y < h - r and r <= x < w - r:
-                for k in range(m):
-                    p = c + of[k]
-                    if ow[k] > bestf[p]:
-                        bestf[p] = ow[k]
-                        outf[p] = dc
+    r = max(r, 0)  # splat_r < 0: no footprint, and the buffer geometry of r = 0
+    # splat keys for image rows boff .. boff + BR - 1, B rows written out at a time
+    B = 32
+    BR = B + 2 * r
+    key = np.zeros(BR * w, dtype=np.uint64)
+    lo = np.full(BR, w, dtype=np.int64)
+    hi = np.full(BR, -1, dtype=np.int64)
+    boff = -r
+    # disparities of the accepted dots, then a 0 that a key of 0 (no splat) points to
+    dacc = np.empty(4096)
+    dacc[0] = 0.0
+    big = h * w  # above any dot count
+    na = 0
+    out = np.zeros((h, w))
+    ok = np.zeros((h, w), dtype=np.bool_)
+    outf = out.reshape(-1)
+    okf = ok.reshape(-1).view(np.uint8)
+    built = 0  # SAT rows 0 .. built are in the ring
+    for y in range(h):
+        while built < min(y + half + 1, h):
+            r0 = U(built % R) * W
+            r1 = U((built + 1) % R) * W
+            if built + 2 <= h:
+                r2 = U((built + 2) % R) * W
+                stray = _cw_sat_pair(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, r2,
+                                     mrow, brow, frow, mrow2, brow2, frow2)
+                built += 2
             else:
-                for k in range(m):
-                    yy = y + oy[k]
-                    xx = x + ox[k]
-                    if 0 <= yy < h and 0 <= xx < w and ow[k] > best[yy, xx]:
-                        best[yy, xx] = ow[k]
-                        out[yy, xx] = dc
-    return out, best > 0
+                stray = _cw_sat_row(db, vf, of, stray, built, w, sv, ss, sd, r0, r1, mrow, brow,
+                                    frow)
+                built += 1
+        if half <= y < h - half:
+            p0 = U(y) * U(w)
+            nc = 0
+            for x in range(half, w - half):
+                p = p0 + U(x)
+                cx[nc] = x
+                nc += np.int64(of[p] & vf[p])
+            if na + nc + 1 > dacc.size:  # room for every candidate of the row
+                grown = np.empty(max(2 * dacc.size, na + nc + 1))
+                grown[:na + 1] = dacc[:na + 1]
+                dacc = grown
+            s0 = (y - half) % R
+            a_row = U(s0) * W
+            b_row = U((y + half + 1) % R) * W
+            xmin = w
+            xmax = -1
+            for k in range(nc):
+                x = cx[k]
+                a0 = a_row + U(x - half)
+                b0 = b_row + U(x - half)
+                n_valid = sv[b0 + un] - sv[a0 + un] - sv[b0] + sv[a0]
+                if stray:
+                    n_dots = sd[b0 + un] - sd[a0 + un] - sd[b0] + sd[a0]
+                else:
+                    n_dots = n_valid
+                need = frac * n_dots
+                if n_valid <= need:
+                    continue
+                mean = (ss[b0 + un] - ss[a0 + un] - ss[b0] + ss[a0]) / n_valid
+                top = sv[a0 + un] - sv[a0]
+                inl = 0
+                rb = U(y - half) * U(w) + U(x - half)
+                tb = U(0)
+                accepted = False
+                # the verdict depends only on the total, so checking it after every row
+                # is only for speed; before the middle row it rarely is certain
+                for j in range(n):
+                    row_inl = 0
+                    if stray:
+                        for i in range(n):
+                            p = rb + U(i)
+                            inlier = abs(df[p] - mean) < thr[tb + U(i)]
+                            row_inl += 1 if of[p] & vf[p] & inlier else 0
+                    else:
+                        for i in range(n):
+                            p = rb + U(i)
+                            inlier = abs(df[p] - mean) < thr[tb + U(i)]
+                            row_inl += np.int64(of[p] & np.uint8(inlier))
+                    inl += row_inl
+                    rb += U(w)
+                    tb += un
+                    if j < half:
+                        continue
+                    if inl > need:
+                        accepted = True
+                        break
+                    sj = s0 + j + 1
+                    sj = sj - R if sj >= R else sj
+                    ra = U(sj) * W + U(x - half)
+                    left = n_valid - (sv[ra + un] - sv[ra] - top)
+                    if inl + left <= need:
+                        break
+                if not accepted:
+                    continue
+                dacc[na] = df[p0 + U(x)]
+                low = U(big - na)
+                na += 1
+                dacc[na] = 0.0
+                xmin = min(xmin, x)
+                xmax = max(xmax, x)
+                if r <= y < h - r and r <= x < w - r:
+                    pc = (y - boff) * w + x
+                    for q in range(m):
+                        pq = U(pc + ofs[U(q)])
+                        key[pq] = max(key[pq], rk[U(q)] | low)
+                else:
+                    for q in range(m):
+                        yy = y + oy[q]
+                        xx = x + ox[q]
+                        if 0 <= yy < h and 0 <= xx < w:
+                            pq = U((yy - boff) * w + xx)
+                            key[pq] = max(key[pq], rk[U(q)] | low)
+            if xmin <= xmax:
+                for yy in range(y - r - boff, y + r + 1 - boff):
+                    lo[yy] = min(lo[yy], max(xmin - r, 0))
+                    hi[yy] = max(hi[yy], min(xmax + r, w - 1))
+        # rows up to y - r can get no more splats: write out a block, shift the buffer
+        if y - r == boff + B - 1:
+            for b in range(B):
+                if boff + b >= 0:
+                    _cw_finish_row(boff + b, b, w, big, na, key, lo, hi, dacc, outf, okf)
+            key[:2 * r * w] = key[B * w:]
+            key[2 * r * w:] = 0
+            lo[:2 * r] = lo[B:]
+            hi[:2 * r] = hi[B:]
+            lo[2 * r:] = w
+            hi[2 * r:] = -1
+            boff += B
+    for yf in range(max(boff, 0), h):
+        _cw_finish_row(yf, yf - boff, w, big, na, key, lo, hi, dacc, outf, okf)
+    return out, ok
 
 
 @numba.njit(cache=True, nogil=True)
