@@ -19,7 +19,13 @@ from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
 from vhgen.scene.geometry import id_bytes
-from vhgen.scene.topology import INWARD, OUTWARD, closed_components, closed_sides
+from vhgen.scene.topology import (
+    INWARD,
+    OUTWARD,
+    closed_components,
+    closed_sides,
+    vertex_cache_order,
+)
 
 LABEL_TEX_WIDTH = 4096
 
@@ -167,7 +173,7 @@ class DepthLabelRenderer:
         self.num_bones = 0
         self._single: GpuMesh | None = None
         self._static: tuple[GpuMesh, int, int] | None = None  # (mesh, vertices, triangles)
-        self._topologies: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        self._topologies: dict[tuple, tuple[tuple[np.ndarray, np.ndarray], np.ndarray]] = {}
 
     def _compile(self, num_bones: int) -> None:
         if self.program is not None and num_bones == self.num_bones:
@@ -185,9 +191,11 @@ class DepthLabelRenderer:
 
     def _cull_ranges(self, vertices, faces, labels, cull: bool
                      ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, int, str | None], ...]]:
-        """Faces and labels reordered (stably) so that triangles of closed surfaces come
-        first, and the runs to draw: the closed ones with the side facing away from the
-        camera culled (see :mod:`vhgen.scene.topology`), open ones with nothing culled.
+        """Faces and labels reordered so that triangles of closed surfaces come first, each
+        run in vertex-cache order (:func:`~vhgen.scene.topology.vertex_cache_order`: the
+        same triangles, ~7% less of a person's draw on llvmpipe), and the runs to draw: the
+        closed ones with the side facing away from the camera culled (see
+        :mod:`vhgen.scene.topology`), open ones with nothing culled.
         Culling halves the triangles a body sends to rasterisation (llvmpipe spends most
         of a person's draw there) and changes no pixel: a closed surface's far side is
         always behind its near side. The projection does not flip y, so a triangle wound
@@ -200,15 +208,18 @@ class DepthLabelRenderer:
         far_side_of_outward = "front" if p[0, 0] * p[1, 1] > 0 else "back"
         near_side = {"front": "back", "back": "front"}[far_side_of_outward]
         key = (faces.shape, hashlib.sha1(np.ascontiguousarray(faces).tobytes()).digest())
-        topology = self._topologies.get(key)
-        if topology is None:  # avatars share their topology: found once, 15 ms
-            topology = closed_components(faces, len(vertices))
+        cached = self._topologies.get(key)
+        if cached is None:  # avatars share their topology: found once, ~60 ms
+            position = np.empty(len(faces), np.int64)
+            position[vertex_cache_order(faces, len(vertices))] = np.arange(len(faces))
+            cached = (closed_components(faces, len(vertices)), position)
             if len(self._topologies) >= 8:
                 self._topologies.pop(next(iter(self._topologies)))
-            self._topologies[key] = topology
+            self._topologies[key] = cached
+        topology, position = cached
         side = closed_sides(vertices, faces, topology)
         rank = np.where(side == OUTWARD, 0, np.where(side == INWARD, 1, 2))
-        order = np.argsort(rank, kind="stable")
+        order = np.lexsort((position, rank))
         counts = np.bincount(rank, minlength=3)
         modes = (far_side_of_outward, near_side, None)
         ranges, start = [], 0

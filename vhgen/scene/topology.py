@@ -99,3 +99,62 @@ def closed_sides(vertices: np.ndarray, faces: np.ndarray,
     flat = np.abs(volume) <= 1e-9 * extent ** 3
     side = np.where(~closed | flat, OPEN, np.where(volume > 0, OUTWARD, INWARD))
     return side[comp].astype(np.int8)
+
+
+def vertex_cache_order(faces: np.ndarray, num_vertices: int, cache_size: int = 24
+                       ) -> np.ndarray:
+    """A permutation of the triangles (T,) int64 that reuses recently used vertices:
+    Tipsify (Sander, Nehab and Barczak, "Fast triangle reordering for vertex locality and
+    reduced overdraw", SIGGRAPH 2007). Fans around one vertex at a time, then moves to a
+    vertex of the last fans that is still in a simulated FIFO cache of ``cache_size``.
+    A GL implementation shades a vertex again when it has left its post-transform cache;
+    llvmpipe also bins the triangles of a run together. The same triangles are drawn, in
+    another order. Linear time; ~35 ms for a 32k-triangle body."""
+    f = np.asarray(faces, np.int64)
+    t = len(f)
+    if t == 0:
+        return np.zeros(0, np.int64)
+    flat = f.reshape(-1)
+    by_vertex = (np.argsort(flat, kind="stable") // 3).tolist()  # triangles of each vertex
+    counts = np.bincount(flat, minlength=num_vertices)
+    starts = np.concatenate([[0], np.cumsum(counts)]).tolist()
+    live = counts.tolist()  # triangles of the vertex not emitted yet
+    stamp = [-(cache_size + 1)] * num_vertices  # when the vertex last entered the cache
+    emitted = [False] * t
+    tri = f.tolist()
+    out: list[int] = []
+    dead_end: list[int] = []
+    clock = cache_size + 1
+    cursor = 0
+    fan = int(flat[0])
+    while fan >= 0:
+        candidates = []
+        for k in by_vertex[starts[fan]:starts[fan + 1]]:
+            if emitted[k]:
+                continue
+            emitted[k] = True
+            out.append(k)
+            for v in tri[k]:
+                dead_end.append(v)
+                candidates.append(v)
+                live[v] -= 1
+                if clock - stamp[v] > cache_size:  # a miss: the vertex enters the cache
+                    stamp[v] = clock
+                    clock += 1
+        # next fan: the candidate still in the cache longest, if its fan fits in it
+        fan, best = -1, -1
+        for v in candidates:
+            if live[v] > 0:
+                age = clock - stamp[v]
+                priority = age if age + 2 * live[v] <= cache_size else 0
+                if priority > best:
+                    best, fan = priority, v
+        while fan < 0 and dead_end:  # back along the recent vertices
+            v = dead_end.pop()
+            if live[v] > 0:
+                fan = v
+        while fan < 0 and cursor < num_vertices:  # or the next vertex with triangles left
+            if live[cursor] > 0:
+                fan = cursor
+            cursor += 1
+    return np.asarray(out, np.int64)

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 
@@ -74,7 +74,11 @@ class FrameRecord:
     camera_roll_deg: float = _col("float64", "about the optical axis, degrees")
 
     def to_row(self) -> dict[str, Any]:
-        return asdict(self)
+        """The row as plain dicts and lists (the people as dicts), for Arrow. Shallow:
+        ``dataclasses.asdict`` deep-copies every joint list, ~0.1 ms per person."""
+        row = {f.name: getattr(self, f.name) for f in fields(self)}
+        row["people"] = [{f.name: getattr(p, f.name) for f in fields(p)} for p in self.people]
+        return row
 
 
 def columns(record: type = FrameRecord) -> list[tuple[str, str]]:
