@@ -52,18 +52,18 @@ def _old_path(gen, cfg, poses, plan, frame):
     w2c = sample_camera(rng, cfg.camera).world_to_camera
     s = cfg.sensor
     ren = DepthLabelRenderer(gen.ctx, s.intrinsics, near=cfg.camera.near_m,
-                             far=cfg.camera.far_m, normals="normals" in s.needs)
+                             far=cfg.camera.far_m, incidence="incidence" in s.needs)
     ren.set_mesh(body.vertices, body.faces, body.joints, body.weights, body.face_labels,
                  body.num_bones)
     depth, labels = ren.render(w2c @ mats)
-    normals = ren.normals
+    incidence = ren.incidence
     proj = None
     if "projector_depth" in s.needs:
         w2p = w2c.copy()
         w2p[0, 3] -= s.baseline_m
         proj, _ = ren.render(w2p @ mats)
     ren.release()
-    out = SensorModel(s).simulate(depth, rng, labels=labels, normals=normals,
+    out = SensorModel(s).simulate(depth, rng, labels=labels, incidence=incidence,
                                   projector_depth=proj)
     return out.depth_mm, out.labels if out.labels is not None else labels
 

@@ -122,12 +122,15 @@ def test_renderers_can_be_released_and_recreated(gl_ctx):
     """A released renderer's framebuffer must not break the next one on the same context."""
     v, f = _quad(-1, 1, -1, 1, 2)
     for _ in range(3):
-        ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+        ren = DepthLabelRenderer(gl_ctx, INTR, incidence=True)
         ren.set_mesh(v, f, np.zeros((4, 4), int), np.tile([1.0, 0, 0, 0], (4, 1)),
                      np.ones(2, np.uint8), 1)
         depth, _ = ren.render(np.eye(4)[None])
         assert depth[59, 79] == pytest.approx(2.0)
-        np.testing.assert_allclose(ren.normals[59, 79], [0, 0, -1], atol=1e-6)
+        # the plane faces the optical axis: the incidence is the ray's cosine to it
+        rays = pixel_rays(INTR)
+        np.testing.assert_allclose(ren.incidence, np.where(
+            depth > 0, 1 / np.linalg.norm(rays, axis=-1), 0), atol=2e-6)
         ren.release()
 
 
@@ -149,7 +152,7 @@ def test_back_face_culling_changes_no_pixel(gl_ctx, wound):
     labels = (np.arange(len(faces)) % 250 + 1).astype(np.uint8)
     n = len(v)
     args = (np.zeros((n, 4), int), np.tile([1.0, 0, 0, 0], (n, 1)), labels, 1)
-    ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+    ren = DepthLabelRenderer(gl_ctx, INTR, incidence=True)
     views = []
     for cull in (True, False):
         mesh = ren.upload(v, faces, *args, cull=cull)
@@ -166,6 +169,6 @@ def test_back_face_culling_changes_no_pixel(gl_ctx, wound):
     assert (full.depth > 0).sum() > 2000
     np.testing.assert_array_equal(culled.ids, full.ids)
     np.testing.assert_array_equal(culled.depth, full.depth)
-    np.testing.assert_array_equal(culled.normals, full.normals)
+    np.testing.assert_array_equal(culled.incidence, full.incidence)
     sphere = (full.labels > 0) & (culled.depth > 2.8)
     assert (bad.depth[sphere] > full.depth[sphere] + 1e-3).mean() > 0.95

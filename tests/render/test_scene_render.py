@@ -70,7 +70,7 @@ def test_person_behind_box_gets_no_labels_where_box_is_nearer(gl_ctx):
 def test_two_people_occlude_each_other_exactly(gl_ctx):
     bodies = {0: _Quad(-1.0, 0.3, -1, 1, 2.5, label=3), 1: _Quad(-0.3, 1.0, -1, 1, 3.0,
                                                                  label=7)}
-    ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+    ren = DepthLabelRenderer(gl_ctx, INTR, incidence=True)
     scene = SceneRenderer(ren, bodies.__getitem__)
     views = scene.render(_desc([_person(1, 0), _person(2, 1)], []), projector_baseline_m=0.075)
     cam = views.camera
@@ -80,7 +80,7 @@ def test_two_people_occlude_each_other_exactly(gl_ctx):
     assert (cam.instances[front & (np.abs(pixel_rays(INTR)[..., 1] * 2.5) < .9)] == 1).all()
     assert (cam.instances[back_only] == 2).all() and (cam.labels[back_only] == 7).all()
     assert set(np.unique(cam.classes)) == {0, PERSON}
-    assert cam.normals is not None and views.projector_depth is not None
+    assert cam.incidence is not None and views.projector_depth is not None
     # the projector sees the same scene shifted: its depth differs from the camera's
     assert not np.array_equal(views.projector_depth, cam.depth)
     # avatars stay resident: rendering again uploads nothing new
@@ -109,17 +109,17 @@ def test_static_draw_errors(gl_ctx):
     ren.release()
 
 
-@pytest.mark.parametrize("normals", [False, True])
-def test_packed_ids_are_exact_up_to_255(gl_ctx, normals):
+@pytest.mark.parametrize("incidence", [False, True])
+def test_packed_ids_are_exact_up_to_255(gl_ctx, incidence):
     """Part label, instance and class travel packed in one float channel: every value
-    0..255 of each comes back exactly, with and without the normals target, and a static
+    0..255 of each comes back exactly, with and without the incidence channel, and a static
     mesh's triangles keep their own (user) classes in one merged draw."""
     bodies = {0: _Quad(-2.0, 0.0, -2, 2, 2.0, label=255)}
     left = quad(np.array([[0.0, -2, 3.0], [9, -2, 3.0], [9, 0, 3.0], [0.0, 0, 3.0]]), 254,
                 "left")
     right = quad(np.array([[0.0, 0, 3.0], [9, 0, 3.0], [9, 2, 3.0], [0.0, 2, 3.0]]), 7,
                  "right")
-    ren = DepthLabelRenderer(gl_ctx, INTR, normals=normals)
+    ren = DepthLabelRenderer(gl_ctx, INTR, incidence=incidence)
     scene = SceneRenderer(ren, bodies.__getitem__)
     view = scene.render(_desc([_person(255, 0)], [left, right])).camera
     scene.release()
@@ -135,17 +135,18 @@ def test_packed_ids_are_exact_up_to_255(gl_ctx, normals):
     assert (view.classes[up] == 254).all() and (view.classes[down] == 7).all()
     assert (view.labels[up | down] == 0).all() and (view.instances[up | down] == 0).all()
     assert (view.ids[person] == 255 | 255 << 8 | PERSON << 16).all()
-    assert (view.normals is not None) == normals
-    if normals:
-        assert view.normals is not None and view.normals.shape == (INTR.height, INTR.width, 3)
-        np.testing.assert_allclose(view.normals[up], np.tile([0.0, 0.0, -1.0], (up.sum(), 1)),
-                                   atol=1e-5)
+    assert (view.incidence is not None) == incidence
+    if incidence:
+        assert view.incidence is not None and view.incidence.shape == (INTR.height, INTR.width)
+        rays = pixel_rays(INTR)
+        np.testing.assert_allclose(view.incidence[up],
+                                   1 / np.linalg.norm(rays, axis=-1)[up], atol=1e-5)
 
 
 def test_static_geometry_written_into_reused_buffers_draws_as_uploaded(gl_ctx):
     """Frames with more, fewer, then more static triangles (the reused buffers grow):
     each draws exactly as a freshly uploaded mesh of the same geometry."""
-    ren = DepthLabelRenderer(gl_ctx, INTR, normals=True)
+    ren = DepthLabelRenderer(gl_ctx, INTR, incidence=True)
     b = _Quad(-1, 1, -1, 1, 9)
     person = ren.upload(b.vertices, b.faces, b.joints, b.weights, b.face_labels, 1)
     rng = np.random.default_rng(3)

@@ -48,7 +48,7 @@ def frames(cfg: SensorConfig) -> list[tuple[Frame, int]]:
     b2 = analytic_frame("steps", "step", intr, b,
                         [Rect(2.5, slope=-0.6, label=1), Rect(0.9, x=(-0.2, 0.05), label=6)])
     b2 = Frame(b2.name, b2.kind, b2.depth.astype(np.float32), b2.labels,
-               b2.normals.astype(np.float32), b2.projector_depth.astype(np.float32), b2.info)
+               b2.incidence.astype(np.float32), b2.projector_depth.astype(np.float32), b2.info)
     return [(a, 11), (b2, 12)]
 
 
@@ -65,7 +65,7 @@ def fingerprint(sensor: str) -> list[dict]:
     out = []
     for fr, seed in frames(cfg):
         o = model.simulate(fr.depth, np.random.default_rng(seed), labels=fr.labels.copy(),
-                           normals=fr.normals, projector_depth=fr.projector_depth)
+                           incidence=fr.incidence, projector_depth=fr.projector_depth)
         out.append({"depth_mm": _sha(o.depth_mm), "labels": _sha(o.labels),
                     "raw11": _sha(o.raw11), "holes": dict(sorted(o.holes.items())),
                     "valid_pixels": int(o.valid.sum())})

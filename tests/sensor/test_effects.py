@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from vhgen.camera import pixel_rays
 from vhgen.sensor.effects import AxialNoise
 from vhgen.sensor.model import SensorConfig, SensorModel
 from vhgen.sensor.stages import AxialNoiseStage
@@ -31,8 +32,8 @@ def test_shipped_sensors_load_and_declare_needs():
     exact = SensorConfig.load("kinect_v1_exact_shadows")
     ideal = SensorConfig.load("ideal")
     assert fast.needs == frozenset() and ideal.needs == frozenset()
-    assert full.needs == {"normals"} and "projector_depth" not in full.needs
-    assert exact.needs >= {"projector_depth", "normals"}
+    assert full.needs == {"incidence"} and "projector_depth" not in full.needs
+    assert exact.needs >= {"projector_depth", "incidence"}
     for p in (configs_dir() / "sensors").glob("*.yaml"):
         SensorConfig.load(p)
 
@@ -84,15 +85,14 @@ def test_deterministic_per_frame_generator_and_no_draws_when_not_random(tmp_path
     full = SensorModel(SensorConfig.load("kinect_v1_full"))
     z = _plane(2.0, 480, 640)
     z[:, 300:] = 1.2
-    n = np.zeros((480, 640, 3))
-    n[..., 2] = -1
-    a = full.simulate(z, np.random.default_rng(7), normals=n)
-    b = full.simulate(z, np.random.default_rng(7), normals=n)
+    n = np.ones((480, 640), np.float32)
+    a = full.simulate(z, np.random.default_rng(7), incidence=n)
+    b = full.simulate(z, np.random.default_rng(7), incidence=n)
     np.testing.assert_array_equal(a.depth_mm, b.depth_mm)
     np.testing.assert_array_equal(a.raw11, b.raw11)
     with pytest.raises(ValueError, match="Generator"):
-        full.simulate(z, None, normals=n)
-    with pytest.raises(ValueError, match="normals"):
+        full.simulate(z, None, incidence=n)
+    with pytest.raises(ValueError, match="incidence"):
         full.simulate(z, np.random.default_rng(7))
     rng = np.random.default_rng(3)
     state = rng.bit_generator.state
@@ -194,11 +194,13 @@ def test_correlation_window_fills_planes_loses_thin_rods_fattens_edges(tmp_path)
 def test_grazing_dropout_and_nguyen_angle_term_stay_finite(tmp_path):
     cfg = _cfg("  - axial_noise: {model: nguyen, angle_term: true}\n"
                "  - dropout: {max_angle_deg: 80}\n", tmp_path)
-    n = np.zeros((H, W, 3))
-    n[..., 2] = -1.0
-    n[:, :40] = [1.0, 0.0, 0.0]  # exactly 90 deg to the optical axis
-    n[:, 40:80] = [np.sin(np.deg2rad(85)), 0, -np.cos(np.deg2rad(85))]
-    out = SensorModel(cfg).simulate(_plane(2.0), np.random.default_rng(0), normals=n)
+    normals = np.zeros((H, W, 3))
+    normals[..., 2] = -1.0
+    normals[:, :40] = [1.0, 0.0, 0.0]  # exactly 90 deg to the optical axis
+    normals[:, 40:80] = [np.sin(np.deg2rad(85)), 0, -np.cos(np.deg2rad(85))]
+    rays = pixel_rays(cfg.intrinsics)
+    n = np.abs((normals * rays).sum(-1) / np.linalg.norm(rays, axis=-1))
+    out = SensorModel(cfg).simulate(_plane(2.0), np.random.default_rng(0), incidence=n)
     assert np.isfinite(out.disparity).all()
     assert not out.valid[:, :30].any() and out.valid[:, 100:].mean() > 0.99
 

@@ -25,9 +25,8 @@ def _frame():
     z = np.where(u < W // 2, 3.0, 1.0) + 0.05 * np.sin(v / 3.0)
     z[:3, :5] = 0.0
     z[3, :4] = [np.nan, np.inf, -1.0, 70.0]
-    n = np.zeros((H, W, 3), np.float32)
-    n[..., 2] = -1
-    n[:, :6] = [1, 0, 0]  # grazing
+    n = np.ones((H, W), np.float32)  # facing the camera
+    n[:, :6] = 0.0  # grazing
     proj = np.where(u < W // 2 - 4, 3.0, 1.0)
     labels = np.where(u < W // 2, 1, 2).astype(np.uint8)
     return z, n, proj, labels
@@ -85,7 +84,7 @@ def test_any_ordering_loads_and_runs_or_is_refused_at_load(effects, seed):
     z, n, proj, labels = _frame()
     model = SensorModel(cfg)
     for k in range(2):  # the second frame exercises the stages' caches
-        out = model.simulate(z, np.random.default_rng(seed + k), labels=labels, normals=n,
+        out = model.simulate(z, np.random.default_rng(seed + k), labels=labels, incidence=n,
                              projector_depth=proj)
     assert out.depth_mm.shape == (H, W) and out.depth_mm.dtype == np.uint16
     assert np.isfinite(out.disparity).all()

@@ -23,7 +23,7 @@ def test_reference_recovers_plane_disparity_to_the_eighth_pixel(tmp_path):
     m = _ref(tmp_path, noise=False)
     intr = m.cfg.intrinsics
     fr = analytic_frame("plane", "plane", intr, B, [Rect(2.0)])
-    out = m.simulate(fr.depth, None, normals=fr.normals, projector_depth=fr.projector_depth)
+    out = m.simulate(fr.depth, None, incidence=fr.incidence, projector_depth=fr.projector_depth)
     true_d = F * B / 2.0
     # away from the image border (truncated windows) and the left band the projector
     # does not reach (columns < f b / z = 21)
@@ -40,7 +40,7 @@ def test_reference_shadows_and_noise(tmp_path):
     m = _ref(tmp_path, noise=True)
     intr = m.cfg.intrinsics
     fr = analytic_frame("step", "step", intr, B, [Rect(3.0), Rect(1.0, x=(0.0, np.inf))])
-    out = m.simulate(fr.depth, np.random.default_rng(0), normals=fr.normals,
+    out = m.simulate(fr.depth, np.random.default_rng(0), incidence=fr.incidence,
                      projector_depth=fr.projector_depth)
     row = out.valid[120, 60:160]
     band = np.flatnonzero(~row)
@@ -48,7 +48,7 @@ def test_reference_shadows_and_noise(tmp_path):
     assert abs(len(band) - expected) < 6 and band.max() + 60 >= 150  # left of the edge
     assert out.holes["matching"] > 0
     with pytest.raises(ValueError, match="projector"):
-        m.simulate(fr.depth, np.random.default_rng(0), normals=fr.normals)
+        m.simulate(fr.depth, np.random.default_rng(0), incidence=fr.incidence)
 
 
 def test_reference_near_field_beyond_search_range_is_invalid(tmp_path):
@@ -58,5 +58,5 @@ def test_reference_near_field_beyond_search_range_is_invalid(tmp_path):
 
     m = _ref(tmp_path, noise=False)
     fr = analytic_frame("near", "plane", m.cfg.intrinsics, B, [Rect(0.5)])
-    out = m.simulate(fr.depth, None, normals=fr.normals, projector_depth=fr.projector_depth)
+    out = m.simulate(fr.depth, None, incidence=fr.incidence, projector_depth=fr.projector_depth)
     assert out.valid.mean() < 0.01 and np.isfinite(out.disparity).all()

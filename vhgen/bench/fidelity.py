@@ -35,7 +35,7 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
 def _run(model: SensorModel, fr: Frame, seed: int):
     rng = np.random.default_rng(seed)
     t = time.perf_counter()
-    out = model.simulate(fr.depth, rng, labels=fr.labels, normals=fr.normals,
+    out = model.simulate(fr.depth, rng, labels=fr.labels, incidence=fr.incidence,
                          projector_depth=fr.projector_depth)
     return out, (time.perf_counter() - t) * 1000.0
 
@@ -72,7 +72,7 @@ def evaluate(frames: list[Frame], configs=DEFAULT_CONFIGS, reference: str = REFE
     f_b = ref_model.cfg.intrinsics.fx * ref_model.cfg.baseline_m
     for m in models.values():  # compile numba kernels outside the timings
         m.simulate(frames[0].depth, np.random.default_rng(0), labels=frames[0].labels,
-                   normals=frames[0].normals, projector_depth=frames[0].projector_depth)
+                   incidence=frames[0].incidence, projector_depth=frames[0].projector_depth)
     results: dict[str, Any] = {"reference": reference, "configs": {},
                                "scenes": [fr.name for fr in frames]}
     ref_out = {}

@@ -42,18 +42,20 @@ class Frame:
     kind: str
     depth: np.ndarray  # (H, W) float64 planar depth, 0 = no hit
     labels: np.ndarray  # (H, W) uint8 object ids
-    normals: np.ndarray  # (H, W, 3) camera frame
+    incidence: np.ndarray  # (H, W) |cos|, surface normal vs viewing ray
     projector_depth: np.ndarray  # (H, W) as seen from the projector
     info: dict
 
 
 def cast(intr: Intrinsics, rects: list[Rect], origin_x: float = 0.0):
-    """Planar depth, labels and normals of ``rects`` seen from (origin_x, 0, 0)."""
+    """Planar depth, labels and incidence (|cos| of the angle between surface normal and
+    viewing ray) of ``rects`` seen from (origin_x, 0, 0)."""
     rays = pixel_rays(intr)
     dx, dy = rays[..., 0], rays[..., 1]
     depth = np.zeros(dx.shape)
     labels = np.zeros(dx.shape, np.uint8)
-    normals = np.zeros(dx.shape + (3,))
+    incidence = np.zeros(dx.shape)
+    unit = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
     for r in rects:
         den = 1.0 - r.slope * dx
         t = np.where(np.abs(den) > 1e-12, (r.z0 + r.slope * origin_x) / np.where(
@@ -65,15 +67,15 @@ def cast(intr: Intrinsics, rects: list[Rect], origin_x: float = 0.0):
         depth = np.where(closer, t, depth)
         labels = np.where(closer, r.label, labels).astype(np.uint8)
         n = np.array([r.slope, 0.0, -1.0]) / np.hypot(r.slope, 1.0)
-        normals[closer] = n
-    return depth, labels, normals
+        incidence = np.where(closer, np.abs(unit @ n), incidence)
+    return depth, labels, incidence
 
 
 def analytic_frame(name: str, kind: str, intr: Intrinsics, baseline: float, rects: list[Rect],
                    **info) -> Frame:
-    depth, labels, normals = cast(intr, rects)
+    depth, labels, incidence = cast(intr, rects)
     proj, _, _ = cast(intr, rects, origin_x=baseline)
-    return Frame(name, kind, depth, labels, normals, proj, info)
+    return Frame(name, kind, depth, labels, incidence, proj, info)
 
 
 def suite(intr: Intrinsics, baseline: float, quick: bool = False) -> list[Frame]:
@@ -125,15 +127,15 @@ def human_frame(ctx, intr: Intrinsics, baseline: float, asset_dir, motion_path,
         static = (quad(corners @ c2w[:3, :3].T + c2w[:3, 3], WALL, "wall"),)
     desc = FrameDescription(frame, 0, CameraPose(w2c, 0.0, distance, 1.0), (person,), static,
                             None, np.random.PCG64(0).state)
-    ren = DepthLabelRenderer(ctx, intr, normals=True)
+    ren = DepthLabelRenderer(ctx, intr, incidence=True)
     scene = SceneRenderer(ren, lambda _avatar: body)
     views = scene.render(desc, projector_baseline_m=baseline)
     scene.release()
     ren.release()
     cam, proj = views.camera, views.projector_depth
-    if cam.normals is None or proj is None:
-        raise RenderError("the renderer returned no normals or no projector view")
+    if cam.incidence is None or proj is None:
+        raise RenderError("the renderer returned no incidence or no projector view")
     name = f"human {distance} m" + (f", wall {wall} m" if wall is not None else " alone")
     return Frame(name, "human", cam.depth.astype(np.float64), cam.labels,
-                 cam.normals.astype(np.float32), proj.astype(np.float64),
+                 cam.incidence.astype(np.float32), proj.astype(np.float64),
                  {"motion": str(motion_path), "frame": frame})

@@ -71,7 +71,7 @@ class FrameGenerator:
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
-                                           normals="normals" in cfg.sensor.needs)
+                                           incidence="incidence" in cfg.sensor.needs)
         self.scene = SceneRenderer(self.renderer, self.describer.body)
         self._sensor_json = json.dumps(cfg.sensor.to_dict(), sort_keys=True)
 
@@ -86,7 +86,8 @@ class FrameGenerator:
         cam = views.camera
         packed = cam.ids  # the sensor moves this one array with the pixels
         out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
-                                   normals=cam.normals, projector_depth=views.projector_depth)
+                                   incidence=cam.incidence,
+                                   projector_depth=views.projector_depth)
         labels, instances, classes = unpack_ids(out.labels if out.labels is not None
                                                 else packed)
         return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,

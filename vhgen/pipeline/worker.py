@@ -53,15 +53,11 @@ class FrameWorker:
                 or create_context(cfg.backend)
             # load (or compile) the sensor's numba kernels now, not in the first frame:
             # with arrays of the types and layouts the renderer hands over (a kernel is
-            # compiled per signature): float32 depth, uint32 packed ids, the normals a
-            # strided view of the depth+normal texels
+            # compiled per signature): float32 depth, uint32 packed ids, float32 incidence
             h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
-            texels = np.zeros((h, w, 4), np.float32)
-            texels[..., 0] = 2.0
-            texels[..., 3] = -1.0
             SensorModel(cfg.sensor).simulate(
-                np.ascontiguousarray(texels[..., 0]), np.random.default_rng(0),
-                labels=np.ones((h, w), np.uint32), normals=texels[..., 1:],
+                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
+                labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
                 projector_depth=np.full((h, w), 2.0, np.float32))
         except VhgenError as e:
             self.setup_error = e

@@ -1,7 +1,7 @@
 """Skinned depth + label rendering with moderngl.
 
 The renderer receives a context (see :mod:`vhgen.render.context`); it never creates one.
-One draw fills two targets: planar depth (with the camera-frame normals when asked for),
+One draw fills two targets: planar depth (with the incidence cosine when asked for),
 and the ids (part label, person instance, scene class) packed in one channel; a scene is
 several draws into the same targets, depth-tested against each other.
 """
@@ -115,13 +115,14 @@ class Draw:
 class View:
     """What one draw of a whole scene leaves in the targets, (H, W) each: planar depth
     float32 metres (0 = no hit), ``ids`` uint32 (see :func:`pack_ids`; 0 = no hit), and
-    the camera-frame normals (H, W, 3) float32 when the renderer was made with normals.
+    the incidence (H, W) float32 when the renderer was made with ``incidence=True``: |cos|
+    of the angle between the (flat) face normal and the pixel's viewing ray, in [0, 1].
     ``labels``, ``instances`` and ``classes`` are (H, W) uint8 views into ``ids`` (no
     copy; not contiguous)."""
 
     depth: np.ndarray
     ids: np.ndarray
-    normals: np.ndarray | None
+    incidence: np.ndarray | None
 
     @property
     def labels(self) -> np.ndarray:
@@ -152,18 +153,20 @@ class DepthLabelRenderer:
     """
 
     def __init__(self, ctx, intr: Intrinsics, near: float = 0.1, far: float = 20.0,
-                 skinning: str = "lbs", normals: bool = False):
+                 skinning: str = "lbs", incidence: bool = False):
         _defines(1, skinning)
         self.skinning = skinning
-        self.want_normals = bool(normals)
-        self.normals: np.ndarray | None = None  # (H, W, 3) float32 after render()
+        self.want_incidence = bool(incidence)
+        self.incidence: np.ndarray | None = None  # (H, W) float32 after render()
         self.ctx = ctx
         self.intr = intr
         self.projection = intr.gl_projection(near, far)
         size = (intr.width, intr.height)
-        # depth alone, or depth and the normal in one texel (normals only when a sensor
-        # effect needs them); the packed ids in a second target
-        self._depth_components = 4 if self.want_normals else 1
+        # depth alone, or depth and the incidence in one texel (only when a sensor effect
+        # needs it: every effect that looks at surface orientation uses only the angle to
+        # the viewing ray, so 1 float, not a 3-float normal); the packed ids in a second
+        # target
+        self._depth_components = 2 if self.want_incidence else 1
         self.color = ctx.texture(size, self._depth_components, dtype="f4")
         self.ids_tex = ctx.texture(size, 1, dtype="f4")
         self.depth = ctx.depth_renderbuffer(size)
@@ -181,8 +184,8 @@ class DepthLabelRenderer:
         if self.program is not None:
             self.program.release()
         defs = _defines(num_bones, self.skinning)
-        if self.want_normals:
-            defs["WANT_NORMALS"] = 1
+        if self.want_incidence:
+            defs["WANT_INCIDENCE"] = 1
         self.program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
                                         fragment_shader=_shader("skin.frag", defs))
         self.program["face_labels"].value = 0
@@ -370,21 +373,21 @@ class DepthLabelRenderer:
         ids = np.empty((h, w), dtype=np.float32)
         self.fbo.read_into(ids, components=1, attachment=1, dtype="f4")
         self._check("after draw")
-        normals = None
-        if self.want_normals:
-            normals = out[..., 1:]
-            self.normals = normals
+        incidence = None
+        if self.want_incidence:
+            incidence = np.ascontiguousarray(out[..., 1])
+            self.incidence = incidence
             depth = np.ascontiguousarray(out[..., 0])
         else:
             depth = out
-        return View(depth, ids.astype(np.uint32), normals)
+        return View(depth, ids.astype(np.uint32), incidence)
 
     def render(self, camera_bones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Draw the :meth:`set_mesh` mesh in one pose.
 
         camera_bones : (B, 4, 4) float64 world_to_camera @ M_b.
         Returns depth (H, W) float32 metres (0 = no hit) and labels (H, W) uint8; with
-        ``normals=True`` the camera-frame normals of the same draw are in :attr:`normals`.
+        ``incidence=True`` the incidence of the same draw is in :attr:`incidence`.
         """
         if self._single is None:
             raise RenderError("render() before set_mesh()")

@@ -18,7 +18,7 @@ Configs live in ``configs/sensors/``::
 
 Unknown effects or parameters, and orderings that cannot work, are config errors naming
 the file and the field. The renderer is asked only for what the effects need
-(:attr:`SensorConfig.needs`): normals, a projector-view depth image.
+(:attr:`SensorConfig.needs`): the incidence, a projector-view depth image.
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ class SensorConfig:
 
     @property
     def needs(self) -> frozenset[str]:
-        """What the renderer must provide: a subset of {normals, projector_depth}."""
+        """What the renderer must provide: a subset of {incidence, projector_depth}."""
         out: set[str] = set()
         for e in self.effects:
             out |= e.needs

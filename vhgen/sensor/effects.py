@@ -4,7 +4,7 @@ Each class is a frozen dataclass: its fields are the parameters (type, unit, ran
 field), its ``READS`` / ``WRITES`` the state channels it touches. What each effect does to
 a frame lives in :mod:`vhgen.sensor.stages` (and :mod:`vhgen.sensor.structured_light`);
 this module is pure description and imports neither numba nor scipy. Effects that move
-pixels (lens distortion, lateral noise) move labels and normals with them, so the ground
+pixels (lens distortion, lateral noise) move labels and the incidence with them, so the ground
 truth stays aligned with the depth. E10, the output encoding, is
 :class:`vhgen.sensor.spec.Encoding`.
 """
@@ -39,7 +39,7 @@ class LensDistortion(EffectSpec, name="lens_distortion"):
 
     The rendered image is ideal pinhole; each output (distorted) pixel takes the nearest
     ideal pixel its undistorted ray passes through (no interpolation, so no invented
-    surfaces); rays leaving the image become holes. Labels and normals move with the
+    surfaces); rays leaving the image become holes. Labels and the incidence move with the
     pixels; the projector-view depth does not (it stays on the pinhole grid), so effects
     reading it must come first.
     """
@@ -51,7 +51,7 @@ class LensDistortion(EffectSpec, name="lens_distortion"):
     k3: float = number(-1.30536, -10, 10)
 
     READS = MEASURE
-    WRITES = MEASURE | {"labels", "normals", "pixel_grid"}  # labels, normals: when given
+    WRITES = MEASURE | {"labels", "incidence", "pixel_grid"}  # labels, incidence: when given
 
 
 @dataclass(frozen=True)
@@ -67,11 +67,11 @@ class LateralNoise(EffectSpec, name="lateral_noise"):
     model: str = choice("icl", "icl", "nguyen")
 
     RANDOM = True
-    WRITES = MEASURE | {"labels", "normals"}  # moved with the pixels when given
+    WRITES = MEASURE | {"labels", "incidence"}  # moved with the pixels when given
 
     @property
     def reads(self) -> frozenset[str]:
-        return MEASURE | {"normals"} if self.model == "nguyen" else MEASURE
+        return MEASURE | {"incidence"} if self.model == "nguyen" else MEASURE
 
 
 @dataclass(frozen=True)
@@ -99,7 +99,7 @@ class AxialNoise(EffectSpec, name="axial_noise"):
 
     @property
     def reads(self) -> frozenset[str]:
-        return MEASURE | {"normals"} if self.angle_term else MEASURE
+        return MEASURE | {"incidence"} if self.angle_term else MEASURE
 
 
 @dataclass(frozen=True)
@@ -145,7 +145,7 @@ class Dropout(EffectSpec, name="dropout"):
     max_angle_deg: float = number(80.0, 0.0, 90.0, unit="deg")
     albedo: float = number(1.0, 0.0, 1.0)
 
-    READS = MEASURE | {"normals"}
+    READS = MEASURE | {"incidence"}
     WRITES = MEASURE
 
 
@@ -173,7 +173,7 @@ class StructuredLight(EffectSpec, name="structured_light"):
     albedo: float = number(1.0, 0.0, 1.0)
     ir_noise: bool = flag(True)
 
-    READS = MEASURE | {"projector_depth", "normals", "pattern"}
+    READS = MEASURE | {"projector_depth", "incidence", "pattern"}
     WRITES = MEASURE
 
     @property

@@ -443,20 +443,6 @@ def lateral_indices(draws, table, sigma, h, w):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def incidence_cos(normals, rays_unit):  # pragma: no cover
-    """|n . ray| per pixel (normals (H, W, 3), unit rays (H, W, 3))."""
-    h, w, _ = normals.shape
-    out = np.empty((h, w))
-    for y in range(h):
-        for x in range(w):
-            s = 0.0
-            for c in range(3):
-                s += normals[y, x, c] * rays_unit[y, x, c]
-            out[y, x] = abs(s)
-    return out
-
-
-@numba.njit(cache=True, nogil=True)
 def dots_from_pattern(d, valid, pattern, pad):  # pragma: no cover
     """Pixels a projector dot lands on: pattern[v, round(u - d) + pad] (rectified rig)."""
     h, w = d.shape
@@ -472,9 +458,9 @@ def dots_from_pattern(d, valid, pattern, pad):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def gather_state(idx, z, valid, normals, labels):  # pragma: no cover
-    """z, valid, normals, labels re-sampled at flat source indices ``idx`` (normals and
-    labels may be empty arrays when absent). One loop per array: a fused loop over all
+def gather_state(idx, z, valid, incidence, labels):  # pragma: no cover
+    """z, valid, incidence, labels re-sampled at flat source indices ``idx`` (incidence
+    and labels may be empty arrays when absent). One loop per array: a fused loop over all
     four ran 3x slower (it does not vectorise)."""
     h, w = z.shape
     zf = z.reshape(-1)
@@ -485,22 +471,19 @@ def gather_state(idx, z, valid, normals, labels):  # pragma: no cover
         z2[i] = zf[idx[i]]
     for i in range(h * w):
         v2[i] = vf[idx[i]]
-    nf = normals.reshape(-1, 3)
-    n2 = nf
-    if normals.size == h * w * 3:
-        n2 = np.empty((h * w, 3), dtype=normals.dtype)
+    cf = incidence.reshape(-1)
+    c2 = cf
+    if incidence.size == h * w:
+        c2 = np.empty(h * w, dtype=incidence.dtype)
         for i in range(h * w):
-            k = idx[i]
-            n2[i, 0] = nf[k, 0]
-            n2[i, 1] = nf[k, 1]
-            n2[i, 2] = nf[k, 2]
+            c2[i] = cf[idx[i]]
     lf = labels.reshape(-1)
     l2 = lf
     if labels.size == h * w:
         l2 = np.empty(h * w, dtype=labels.dtype)
         for i in range(h * w):
             l2[i] = lf[idx[i]]
-    return z2.reshape(h, w), v2.reshape(h, w), n2, l2
+    return z2.reshape(h, w), v2.reshape(h, w), c2, l2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -572,19 +555,16 @@ def remove_pixels(mask, valid, arr, hole):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def dropout_inplace(z, valid, normals, rays_unit, ray_norm, cos_min, r_max,
-                    hole):  # pragma: no cover
-    """Grazing (|cos| < cos_min) or too far for the albedo (range > r_max) valid pixels
-    become invalid, get 0 in ``z`` and are marked in ``hole``, in one pass. Returns how
-    many were removed."""
+def dropout_inplace(z, valid, incidence, ray_norm, cos_min, r_max, hole):  # pragma: no cover
+    """Grazing (incidence |cos| < cos_min) or too far for the albedo (range > r_max) valid
+    pixels become invalid, get 0 in ``z`` and are marked in ``hole``, in one pass. Returns
+    how many were removed."""
     h, w = z.shape
     n = 0
     for y in range(h):
         for x in range(w):
             if valid[y, x]:
-                c = abs(normals[y, x, 0] * rays_unit[y, x, 0] + normals[y, x, 1] *
-                        rays_unit[y, x, 1] + normals[y, x, 2] * rays_unit[y, x, 2])
-                if c < cos_min or z[y, x] * ray_norm[y, x] > r_max:
+                if incidence[y, x] < cos_min or z[y, x] * ray_norm[y, x] > r_max:
                     valid[y, x] = False
                     z[y, x] = 0.0
                     hole[y, x] = True

@@ -46,16 +46,16 @@ class SensorModel:
         self.pattern.setflags(write=False)
         rays = pixel_rays(intr)
         self.ray_norm = np.linalg.norm(rays, axis=-1)
-        self.rays_unit = np.ascontiguousarray(rays / self.ray_norm[..., None])
         self.stages: tuple[Stage[Any], ...] = tuple(compile_stage(e, cfg) for e in cfg.effects)
 
     def simulate(self, depth: np.ndarray, rng: np.random.Generator | None, *,
-                 labels: np.ndarray | None = None, normals: np.ndarray | None = None,
+                 labels: np.ndarray | None = None, incidence: np.ndarray | None = None,
                  projector_depth: np.ndarray | None = None) -> SensorOutput:
         """Apply the effects in order to a rendered planar depth image.
 
         depth : (H, W) float32/64 metres, 0 (or NaN, inf, <= 0) = no hit. labels : (H, W)
-        uint8; normals : (H, W, 3) camera frame; projector_depth : (H, W) planar depth seen
+        uint8 (or packed uint32 ids); incidence : (H, W) |cos| of the angle between
+        surface normal and viewing ray, in [0, 1]; projector_depth : (H, W) planar depth seen
         from the projector. rng : the frame's generator; required when an effect is
         random, never drawn from otherwise. Raises ValueError when an input an effect
         needs is missing.
@@ -66,16 +66,19 @@ class SensorModel:
             raise ValueError(f"depth {z.shape} does not match the sensor "
                              f"{cfg.intrinsics.height}x{cfg.intrinsics.width}")
         need = cfg.needs
-        if "normals" in need and normals is None:
-            raise ValueError(f"sensor {cfg.name} needs normals")
+        if "incidence" in need and incidence is None:
+            raise ValueError(f"sensor {cfg.name} needs the incidence (|cos| of the angle "
+                             "between surface normal and viewing ray)")
         if "projector_depth" in need and projector_depth is None:
             raise ValueError(f"sensor {cfg.name} needs a projector-view depth image")
         if cfg.random and rng is None:
             raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
         z, hit = sanitise(z)  # a fresh array: effects may work in place
-        s = SensorState(cfg.intrinsics, cfg.baseline_m, z, hit, labels=labels, normals=normals,
+        s = SensorState(cfg.intrinsics, cfg.baseline_m, z, hit, labels=labels,
+                        incidence=None if incidence is None else
+                        np.ascontiguousarray(incidence, dtype=np.float32),
                         projector_depth=projector_depth, pattern=self.pattern,
-                        rays_unit=self.rays_unit, ray_norm=self.ray_norm)
+                        ray_norm=self.ray_norm)
         s.holes["no_hit"] = ~hit
         for stage in self.stages:
             stage.apply(s, rng)

@@ -28,14 +28,15 @@ from typing import Any, ClassVar, Self
 # What an effect may read or write. depth_m / disparity: the measurement, in metres
 # (planar z) or pixels (d = f b / z); the state converts between them on demand, so either
 # can follow either. valid: the validity mask; holes: per-cause hole masks; labels,
-# normals: rendered ground truth aligned with the pixels; projector_depth: planar depth
+# incidence: rendered ground truth aligned with the pixels (|cos| of the angle between
+# surface normal and viewing ray); projector_depth: planar depth
 # rendered from the projector on the ideal pinhole grid; pattern: the projector's dots;
 # pixel_grid: the pixel lattice itself (written by effects that resample the image
 # through a lens model, after which channels not carried along no longer line up).
-CHANNELS = frozenset({"depth_m", "disparity", "valid", "holes", "labels", "normals",
+CHANNELS = frozenset({"depth_m", "disparity", "valid", "holes", "labels", "incidence",
                       "projector_depth", "pattern", "pixel_grid"})
 # channels the renderer provides on request (SensorConfig.needs)
-RENDERED = frozenset({"normals", "projector_depth"})
+RENDERED = frozenset({"incidence", "projector_depth"})
 
 
 class SpecError(ValueError):
@@ -198,7 +199,7 @@ class EffectSpec(Params):
 
     @property
     def needs(self) -> frozenset[str]:
-        """What the renderer must provide for it (normals, projector_depth)."""
+        """What the renderer must provide for it (incidence, projector_depth)."""
         return self.reads & RENDERED
 
 

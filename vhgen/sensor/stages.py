@@ -45,7 +45,7 @@ def _need_rng(rng: np.random.Generator | None) -> np.random.Generator:
 
 def _grazing_angle(s: SensorState) -> np.ndarray:
     """Incidence angle (rad), clamped at 85 deg so grazing pixels never divide by zero."""
-    return np.minimum(np.arccos(np.clip(s.normals_cos(), 0, 1)), np.deg2rad(85))
+    return np.minimum(np.arccos(np.clip(s.incidence_cos(), 0, 1)), np.deg2rad(85))
 
 
 class RangeGateStage(Stage[RangeGate], spec=RangeGate):
@@ -91,8 +91,8 @@ class LensDistortionStage(Stage[LensDistortion], spec=LensDistortion):
         s.valid = inside & s.valid[vs, us]
         if s.labels is not None:
             s.labels = np.where(inside, s.labels[vs, us], 0).astype(s.labels.dtype)
-        if s.normals is not None:
-            s.normals = s.normals[vs, us]
+        if s.incidence is not None:
+            s.incidence = s.incidence[vs, us]
         s.holes = {k: m[vs, us] & inside for k, m in s.holes.items()}
         s.holes["distortion"] = s.hole("distortion") | ~inside
 
@@ -110,12 +110,12 @@ class LateralNoiseStage(Stage[LateralNoise], spec=LateralNoise):
         idx = lateral_indices(draws, NORMAL_TABLE, np.ascontiguousarray(sigma, dtype=np.float64),
                               h, w)
         z = s.to_depth()
-        nrm = s.normals if s.normals is not None else np.zeros((0, 3), np.float32)
+        inc = s.incidence if s.incidence is not None else np.zeros(0, np.float32)
         lab = s.labels if s.labels is not None else np.zeros(0, np.uint8)
-        s.z, s.valid, n2, l2 = gather_state(idx, z, s.valid, np.ascontiguousarray(nrm),
+        s.z, s.valid, c2, l2 = gather_state(idx, z, s.valid, np.ascontiguousarray(inc),
                                             np.ascontiguousarray(lab))
-        if s.normals is not None:
-            s.normals = n2.reshape(h, w, 3)
+        if s.incidence is not None:
+            s.incidence = c2.reshape(h, w)
         if s.labels is not None:
             s.labels = l2.reshape(h, w)
         s.holes = {k: m.reshape(-1)[idx].reshape(h, w) for k, m in s.holes.items()}
@@ -207,14 +207,14 @@ class CorrelationWindowStage(Stage[CorrelationWindow], spec=CorrelationWindow):
 class DropoutStage(Stage[Dropout], spec=Dropout):
     def apply(self, s: SensorState, rng: np.random.Generator | None) -> None:
         p = self.spec
-        if s.normals is None:
-            raise ValueError("dropout needs normals")
+        if s.incidence is None:
+            raise ValueError("dropout needs the incidence")
         z = s.to_depth()
         # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16, r = z |ray|
         r_max = (p.albedo - 0.01) / 0.16
         cos_min = np.cos(np.deg2rad(p.max_angle_deg))
-        normals = np.ascontiguousarray(s.normals)
-        s.record(lambda hole: dropout_inplace(z, s.valid, normals, s.rays_unit, s.ray_norm,
+        inc = np.ascontiguousarray(s.incidence)
+        s.record(lambda hole: dropout_inplace(z, s.valid, inc, s.ray_norm,
                                               cos_min, r_max, hole), "dropout")
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from vhgen.assets import vhgen_home
 from vhgen.camera import Intrinsics
-from vhgen.sensor.kernels import incidence_cos, invert_inplace, remove_pixels
+from vhgen.sensor.kernels import invert_inplace, remove_pixels
 
 # hole causes of the shipped effects (an added effect may record its own)
 HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",
@@ -72,12 +72,11 @@ class SensorState:
     z: np.ndarray | None  # float64 metres (depth domain), 0 where invalid
     valid: np.ndarray  # bool
     labels: np.ndarray | None = None
-    normals: np.ndarray | None = None  # (H, W, 3) camera frame, facing the camera
+    incidence: np.ndarray | None = None  # (H, W) float32 |cos|, surface normal vs ray
     projector_depth: np.ndarray | None = None  # planar depth seen from the projector
     d: np.ndarray | None = None  # float64 px (disparity domain) when domain == "d"
     domain: str = "z"
     holes: dict[str, np.ndarray] = field(default_factory=dict)  # cause -> removed pixels
-    rays_unit: np.ndarray | None = None  # (H, W, 3) unit viewing rays (cached per sensor)
     ray_norm: np.ndarray | None = None  # (H, W) |ray| for z = 1
     pattern: np.ndarray | None = None  # the projector's binary dot pattern
 
@@ -112,11 +111,11 @@ class SensorState:
         assert a is not None
         return a
 
-    def normals_cos(self) -> np.ndarray:
-        """|cos| of the incidence angle per pixel (needs normals), (H, W) float64."""
-        if self.normals is None:
-            raise ValueError("this effect needs normals")
-        return incidence_cos(np.ascontiguousarray(self.normals), self.rays_unit)
+    def incidence_cos(self) -> np.ndarray:
+        """|cos| of the incidence angle per pixel, (H, W) float64 (needs the incidence)."""
+        if self.incidence is None:
+            raise ValueError("this effect needs the incidence")
+        return self.incidence.astype(np.float64)
 
     def normal_draws(self, rng: np.random.Generator) -> np.ndarray:
         """One uint16 draw per pixel, to be mapped through NORMAL_TABLE (fast N(0, 1))."""

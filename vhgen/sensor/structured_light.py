@@ -123,7 +123,7 @@ class StructuredLightStage(Stage[StructuredLight], spec=StructuredLight):
         z = s.to_depth()
         lit = ~exact_shadow(s, 0.01)
         ranges = z * s.ray_norm * 1000.0
-        cos = s.normals_cos() if s.normals is not None else np.ones_like(z)
+        cos = s.incidence_cos() if s.incidence is not None else np.ones_like(z)
         if p.ir_noise and rng is None:
             raise ValueError("structured_light with ir_noise draws noise: pass a Generator")
         ir = ir_image(z, s.valid, lit, s.pattern.astype(np.float64), PATTERN_PAD, s.fb,

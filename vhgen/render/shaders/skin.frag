@@ -1,6 +1,6 @@
 #version 330 core
-// Two targets. 0: r = planar depth in metres (R32F; RGBA32F with the camera-frame normal
-// in gba when WANT_NORMALS). 1: the pixel's ids packed as part label | instance << 8 |
+// Two targets. 0: r = planar depth in metres (R32F; RG32F with the incidence, |cos| of
+// the angle between surface and viewing ray, in g when WANT_INCIDENCE). 1: the pixel's ids packed as part label | instance << 8 |
 // scene class << 16, stored as a float (R32F; exact, as it is < 2^24). Clear value 0 =
 // no hit. Labels come from a per-triangle texture indexed by gl_PrimitiveID (+ the
 // draw's first triangle: a mesh may be drawn in runs with different culling), so they are
@@ -17,7 +17,7 @@ uniform int prim_offset;  // first triangle of this draw call in the label textu
 
 in float v_depth;
 in vec3 v_cam;
-layout(location = 0) out vec4 out_depth_normal;
+layout(location = 0) out vec4 out_depth_incidence;
 layout(location = 1) out float out_ids;
 
 void main() {
@@ -25,11 +25,12 @@ void main() {
     uint t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).r;
     uint ids = labels_are_classes != 0 ? t << 16u : t | (instance_id << 8u) | (draw_class << 16u);
     out_ids = float(ids);
-#ifdef WANT_NORMALS
-    // flat face normal in the camera frame, turned to face the camera
+#ifdef WANT_INCIDENCE
+    // |cos| of the angle between the flat face normal and this pixel's viewing ray (v_cam
+    // at the fragment centre lies on the ray through the pixel centre)
     vec3 n = normalize(cross(dFdx(v_cam), dFdy(v_cam)));
-    out_depth_normal = vec4(v_depth, dot(n, v_cam) > 0.0 ? -n : n);
+    out_depth_incidence = vec4(v_depth, abs(dot(n, normalize(v_cam))), 0.0, 0.0);
 #else
-    out_depth_normal = vec4(v_depth, 0.0, 0.0, 0.0);
+    out_depth_incidence = vec4(v_depth, 0.0, 0.0, 0.0);
 #endif
 }
