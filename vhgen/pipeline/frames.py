@@ -116,7 +116,7 @@ class FrameGenerator:
             joints_px=np.nan_to_num(project(intr, joints_cam), nan=-1.0).astype(
                 np.float32).reshape(-1).tolist(),
             joints_visible=visible.tolist(), visible_fraction=float(visible.mean()),
-            footprint=[float("nan")] * 3 if person.footprint is None else
+            footprint=None if person.footprint is None else
             [person.footprint.x, person.footprint.z, person.footprint.r])
 
     def _record(self, desc: FrameDescription, view: View, holes: dict, valid_pixels: int,
