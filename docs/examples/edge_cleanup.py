@@ -19,7 +19,7 @@ class EdgeCleanup(EffectSpec, name="edge_cleanup"):
 
     jump_px: float = number(2.0, 0.1, 100.0, unit="px")
 
-    READS = MEASURE  # the measurement and its validity; no normals, no projector pass
+    READS = MEASURE  # the measurement and its validity; no incidence, no projector pass
     WRITES = MEASURE
 
 
