@@ -9,6 +9,7 @@ counts it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -33,7 +34,8 @@ class Disc:
     r: float
 
     def clear_of(self, other: Disc, gap: float = GAP_M) -> bool:
-        return bool(np.hypot(self.x - other.x, self.z - other.z) >= self.r + other.r + gap)
+        # math, not NumPy: called thousands of times per frame on Python floats
+        return math.hypot(self.x - other.x, self.z - other.z) >= self.r + other.r + gap
 
 
 def inside(room: Room | None, d: Disc, gap: float = WALL_GAP_M) -> bool:
@@ -58,10 +60,12 @@ def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
     the angular width of a nearer occluder (a floor-plan bound on how much of a standing
     person stays in view: occluders are treated as tall as the target)."""
     def interval(d: Disc) -> tuple[float, float, float]:
-        dx, dz = d.x - eye_xz[0], d.z - eye_xz[1]
-        dist = float(np.hypot(dx, dz))
-        half = float(np.arcsin(min(1.0, d.r / max(dist, 1e-9))))
-        return float(np.arctan2(dx, dz)), half, dist
+        dx, dz = d.x - ex, d.z - ez
+        dist = math.hypot(dx, dz)
+        half = math.asin(min(1.0, d.r / max(dist, 1e-9)))
+        return math.atan2(dx, dz), half, dist
+
+    ex, ez = float(eye_xz[0]), float(eye_xz[1])
 
     tc, th, tdist = interval(target)
     angles = tc + np.linspace(-th, th, samples)
