@@ -202,9 +202,9 @@ class DepthLabelRenderer:
         Culling halves the triangles a body sends to rasterisation and leaves what is seen
         unchanged: a closed surface's far side is always behind its near side (measured:
         ids identical; 0-3 silhouette pixels a frame where a far-side triangle used to tie
-        the depth test now show the near side, < 0.4 mm apart). The projection does not flip y, so a triangle wound
-        counter-clockwise seen from outside appears clockwise on screen when it faces the
-        camera: GL's "back"; the far side is GL's "front"."""
+        the depth test now show the near side, < 0.4 mm apart). The projection does not
+        flip y, so a triangle wound counter-clockwise seen from outside appears clockwise
+        on screen when it faces the camera: GL's "back"; the far side is GL's "front"."""
         faces = np.asarray(faces)
         if not cull or len(faces) == 0:
             return faces, labels, ((0, len(faces), None),)
