@@ -2,8 +2,10 @@
 
 Everything stands on the floor, so two objects intersect only if their footprints do;
 each footprint is bounded by a circle (:class:`Disc`), and placement keeps the discs
-disjoint (and inside the room, and clear of the camera). Every placement tries at most
-``tries`` times and returns None when nothing fits; the caller drops that object and
+disjoint (and inside the room, and clear of the camera). Every placement draws
+``CANDIDATES x tries`` spots at once, screens them for the room and the other discs with
+NumPy, asks the costlier ``accept`` test (visibility) of at most ``tries`` feasible ones
+in drawing order, and returns None when nothing fits; the caller drops that object and
 counts it.
 """
 
@@ -19,6 +21,8 @@ from vhgen.scene.config import CAMERA_CLEARANCE_M
 from vhgen.scene.room import Room
 
 PLACEMENT_TRIES = 30
+CANDIDATES = 8  # spots drawn per try: screened for room and overlap together (cheap),
+# only the feasible ones reach the costly accept() test (at most PLACEMENT_TRIES of them)
 GAP_M = 0.05  # free space kept between two footprints
 WALL_GAP_M = 0.05
 MIN_PROP_RANGE_M = 1.2  # a prop nearer the camera than this would fill the view
@@ -79,6 +83,31 @@ def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
     return float(1.0 - covered.mean())
 
 
+def _free_many(xz: np.ndarray, radius: float, others: list[Disc],
+               room: Room | None) -> np.ndarray:
+    """:func:`free` for (K, 2) candidate centres of one radius at once: (K,) bool."""
+    ok = np.ones(len(xz), bool)
+    if room is not None:
+        sign, edges = room.edges
+        for ax, az, ex, ez, length in edges:
+            ok &= sign * (ex * (xz[:, 1] - az) - ez * (xz[:, 0] - ax)) / length \
+                >= radius + WALL_GAP_M
+    for o in others:
+        ok &= np.hypot(xz[:, 0] - o.x, xz[:, 1] - o.z) >= radius + o.r + GAP_M
+    return ok
+
+
+def _first_accepted(xz: np.ndarray, feasible: np.ndarray, radius: float,
+                    accept: Callable[[Disc], bool] | None, tries: int) -> Disc | None:
+    """The first candidate, in drawing order, that is feasible and passes ``accept``;
+    ``accept`` (the costly test) is asked at most ``tries`` times."""
+    for k in np.flatnonzero(feasible)[:tries]:
+        d = Disc(float(xz[k, 0]), float(xz[k, 1]), radius)
+        if accept is None or accept(d):
+            return d
+    return None
+
+
 def place_in_view(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.ndarray,
                   half_fov_rad: float, distance_m: tuple[float, float], radius: float,
                   others: list[Disc], room: Room | None,
@@ -86,20 +115,17 @@ def place_in_view(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.n
                   tries: int = PLACEMENT_TRIES) -> Disc | None:
     """A footprint of ``radius`` whose whole circle is inside the horizontal field of view,
     at a distance from the camera in ``distance_m``, free of ``others``, in the room, and
-    passing ``accept``."""
+    passing ``accept``. ``CANDIDATES x tries`` spots are drawn at once (uniform in
+    distance and bearing) and screened together; ``accept`` sees at most ``tries``."""
     base = np.arctan2(forward_xz[0], forward_xz[1])
-    for _ in range(tries):
-        u_d, u_b = rng.uniform(size=2)
-        dist = distance_m[0] + u_d * (distance_m[1] - distance_m[0])
-        margin = np.arcsin(min(1.0, radius / max(dist, 1e-9)))
-        if margin >= half_fov_rad:
-            continue
-        bearing = base + (2 * u_b - 1) * (half_fov_rad - margin)
-        d = Disc(float(eye_xz[0] + dist * np.sin(bearing)),
-                 float(eye_xz[1] + dist * np.cos(bearing)), radius)
-        if free(d, others, room) and (accept is None or accept(d)):
-            return d
-    return None
+    u = rng.uniform(size=(CANDIDATES * tries, 2))
+    dist = distance_m[0] + u[:, 0] * (distance_m[1] - distance_m[0])
+    margin = np.arcsin(np.minimum(1.0, radius / np.maximum(dist, 1e-9)))
+    bearing = base + (2 * u[:, 1] - 1) * (half_fov_rad - margin)
+    xz = np.column_stack([eye_xz[0] + dist * np.sin(bearing),
+                          eye_xz[1] + dist * np.cos(bearing)])
+    feasible = (margin < half_fov_rad) & _free_many(xz, radius, others, room)
+    return _first_accepted(xz, feasible, radius, accept, tries)
 
 
 def place_between(rng: np.random.Generator, eye_xz: np.ndarray, target: Disc, radius: float,
@@ -114,17 +140,14 @@ def place_between(rng: np.random.Generator, eye_xz: np.ndarray, target: Disc, ra
     hi = length - target.r - radius - GAP_M
     if hi <= lo:
         return None
-    for _ in range(tries):
-        u_t, u_s = rng.uniform(size=2)
-        t = lo + u_t * (hi - lo)
-        # off the line by up to the target's radius: partial, not always central, cover
-        side = (2 * u_s - 1) * target.r
-        n = np.array([to[1], -to[0]]) / length
-        p = eye_xz + to / length * t + n * side
-        d = Disc(float(p[0]), float(p[1]), radius)
-        if free(d, [target, *others], room) and (accept is None or accept(d)):
-            return d
-    return None
+    u = rng.uniform(size=(CANDIDATES * tries, 2))
+    t = lo + u[:, 0] * (hi - lo)
+    # off the line by up to the target's radius: partial, not always central, cover
+    side = (2 * u[:, 1] - 1) * target.r
+    n = np.array([to[1], -to[0]]) / length
+    xz = eye_xz + np.outer(t, to / length) + np.outer(side, n)
+    feasible = _free_many(xz, radius, [target, *others], room)
+    return _first_accepted(xz, feasible, radius, accept, tries)
 
 
 def place_anywhere(rng: np.random.Generator, eye_xz: np.ndarray, radius: float,
@@ -138,13 +161,9 @@ def place_anywhere(rng: np.random.Generator, eye_xz: np.ndarray, radius: float,
         lo, hi = room.corners_xz.min(0), room.corners_xz.max(0)
     else:
         lo, hi = np.array([-spread_m, -spread_m]), np.array([spread_m, spread_m])
-    for _ in range(tries):
-        u = rng.uniform(size=2)
-        p = lo + u * (hi - lo)
-        d = Disc(float(p[0]), float(p[1]), radius)
-        if free(d, [cam, *others], room) and (accept is None or accept(d)):
-            return d
-    return None
+    xz = lo + rng.uniform(size=(CANDIDATES * tries, 2)) * (hi - lo)
+    feasible = _free_many(xz, radius, [cam, *others], room)
+    return _first_accepted(xz, feasible, radius, accept, tries)
 
 
 def yaw_transform(yaw_rad: float, x: float, z: float, y: float = 0.0) -> np.ndarray:
