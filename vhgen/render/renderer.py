@@ -301,11 +301,8 @@ class DepthLabelRenderer:
                 slot[0].release()
             cap_v = max(256, 1 << (max(len(v), 1) - 1).bit_length())
             cap_t = max(256, 1 << (max(len(f), 1) - 1).bit_length())
-            mesh = self.upload(np.zeros((cap_v, 3)), np.zeros((cap_t, 3), np.int64),
-                               np.zeros((cap_v, 4), np.int32),
-                               np.tile(np.array([1.0, 0, 0, 0], np.float32), (cap_v, 1)),
-                               np.zeros(cap_t, np.uint8), self.num_bones, static=True,
-                               cull=False)
+            mesh = self.upload_static(np.zeros((cap_v, 3)), np.zeros((cap_t, 3), np.int64),
+                                      np.zeros(cap_t, np.uint8))
             slot = self._static = (mesh, cap_v, cap_t)
         mesh = slot[0]
         vbo_pos, ibo = mesh.objects[2], mesh.objects[1]

@@ -471,19 +471,21 @@ def gather_state(idx, z, valid, incidence, labels):  # pragma: no cover
         z2[i] = zf[idx[i]]
     for i in range(h * w):
         v2[i] = vf[idx[i]]
-    cf = incidence.reshape(-1)
-    c2 = cf
-    if incidence.size == h * w:
-        c2 = np.empty(h * w, dtype=incidence.dtype)
-        for i in range(h * w):
-            c2[i] = cf[idx[i]]
-    lf = labels.reshape(-1)
-    l2 = lf
-    if labels.size == h * w:
-        l2 = np.empty(h * w, dtype=labels.dtype)
-        for i in range(h * w):
-            l2[i] = lf[idx[i]]
-    return z2.reshape(h, w), v2.reshape(h, w), c2, l2
+    return (z2.reshape(h, w), v2.reshape(h, w), _gather_if_present(idx, incidence, h * w),
+            _gather_if_present(idx, labels, h * w))
+
+
+@numba.njit(cache=True, nogil=True)
+def _gather_if_present(idx, a, n):  # pragma: no cover
+    """a (n values, any shape) re-sampled at ``idx``, flat; an absent (empty) ``a`` is
+    returned as it is."""
+    af = a.reshape(-1)
+    if a.size != n:
+        return af
+    out = np.empty(n, dtype=a.dtype)
+    for i in range(n):
+        out[i] = af[idx[i]]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
