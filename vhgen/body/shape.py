@@ -171,7 +171,6 @@ class MacroTargets:
         self._index: dict[str, list] = json.loads(index.read_text())
         self._idx = np.load(self.cache.with_suffix(".idx.npy"), mmap_mode="r")
         self._d = np.load(self.cache.with_suffix(".d.npy"), mmap_mode="r")
-        self.names = set(self._index)
 
     def _build(self, files: list[Path]) -> None:
         idx, d, index, n = [], [], {}, 0

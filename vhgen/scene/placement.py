@@ -54,10 +54,6 @@ def inside(room: Room | None, d: Disc, gap: float = WALL_GAP_M) -> bool:
     return True
 
 
-def free(d: Disc, others: list[Disc], room: Room | None) -> bool:
-    return inside(room, d) and all(d.clear_of(o) for o in others)
-
-
 def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
                      samples: int = 64) -> float:
     """The fraction of ``target``'s angular width, seen from the camera, not covered by
