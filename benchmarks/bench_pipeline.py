@@ -116,7 +116,7 @@ def main() -> None:
 
     s = cfg.sensor
     model = SensorModel(s)
-    if not s.needs:  # effects that need normals/projector depth are timed inside "frame"
+    if not s.needs:  # effects that need the incidence/projector depth are timed inside "frame"
         t = time.perf_counter()
         for i, d in enumerate(depths):
             model.simulate(d, np.random.default_rng(i))

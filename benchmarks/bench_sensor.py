@@ -86,7 +86,8 @@ def main() -> None:
         m = SensorModel(SensorConfig.load(name))
         cells = []
         for fr in frames:
-            kw = dict(labels=fr.labels, normals=fr.normals, projector_depth=fr.projector_depth)
+            kw = dict(labels=fr.labels, incidence=fr.incidence,
+                      projector_depth=fr.projector_depth)
             m.simulate(fr.depth, np.random.default_rng(0), **kw)  # compile, warm caches
             ts = []
             for i in range(args.repeats):

@@ -45,15 +45,10 @@ INSTANCE_COLORS = np.array([[0, 0, 0], [230, 25, 75], [60, 180, 75], [0, 130, 20
 
 def class_palette(num_classes: int) -> np.ndarray:
     """(max(num_classes, 8), 3) uint8 colours of scene classes: the shipped classes keep
-    CLASS_COLORS; user classes beyond get hues spaced by the golden angle (distinct,
-    deterministic), so each declared class has its own colour."""
-    n = max(int(num_classes), len(CLASS_COLORS))
-    extra = np.arange(len(CLASS_COLORS), n)
-    hue = (extra * 0.6180339887498949) % 1.0
-    # HSV -> RGB at s = 0.75, v = 0.9
-    k = (hue[:, None] * 6 + np.array([5.0, 3.0, 1.0])) % 6
-    rgb = 0.9 - 0.9 * 0.75 * np.clip(np.minimum(k, 4 - k), 0, 1)
-    return np.vstack([CLASS_COLORS, (rgb * 255).round().astype(np.uint8)])
+    CLASS_COLORS; user classes beyond take turbo colours at golden-ratio steps (distinct,
+    deterministic, neighbouring ids far apart), so each declared class has its own."""
+    extra = np.arange(len(CLASS_COLORS), max(int(num_classes), len(CLASS_COLORS)))
+    return np.vstack([CLASS_COLORS, turbo((extra * 0.6180339887498949) % 1.0)])
 
 
 def _scene_tiles(root, frames: list[int]) -> bool:

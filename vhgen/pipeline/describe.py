@@ -93,7 +93,8 @@ class FrameDescriber:
             build_body(self.asset_dir, self.scheme).hip_drop
 
     def body(self, avatar_id: int) -> Body:
-        """The avatar's shaped body (CPU), built once per describer."""
+        """The avatar's shaped body (CPU), built on first use and kept in a least recently
+        used cache of :data:`MAX_BODIES`."""
         body = self._bodies.pop(avatar_id, None)
         if body is None:
             if len(self._bodies) >= MAX_BODIES:  # the least recently used goes

@@ -22,7 +22,7 @@ import numpy as np
 from vhgen.config import JobConfig
 from vhgen.pipeline.describe import FrameDescriber, sample_camera
 from vhgen.scene.description import FrameDescription, Person
-from vhgen.scene.geometry import pack_ids, unpack_ids
+from vhgen.scene.geometry import unpack_ids
 from vhgen.scene.truth import joint_visibility, project
 from vhgen.sensor.model import SensorModel
 from vhgen.store.manifest import write_part
@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types her
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FrameGenerator", "FrameOutput", "pack_ids", "sample_camera"]
+__all__ = ["FrameGenerator", "FrameOutput", "sample_camera"]
 
 
 @dataclass(frozen=True, eq=False)

@@ -138,9 +138,6 @@ class LocalPool:
         self._send(w, "config", (self.cfg, self.asset_dir, self.faults))
         return wid
 
-    def pids(self) -> list[int]:
-        return [w.process.pid for w in self.workers.values()]
-
     def load(self, *args: Any) -> list[str]:
         """Send the poses and the plan to every worker and wait for all of them; returns
         their GL renderer strings. A worker's set-up error (a VhgenError) is raised here."""

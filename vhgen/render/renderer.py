@@ -286,7 +286,6 @@ class DepthLabelRenderer:
         when a frame needs more): for the per-frame static geometry, whose GL objects cost
         more to create and release every frame than to overwrite. The mesh stays owned by
         the renderer and is valid until the next call (never release it)."""
-        import moderngl
 
         if self.program is None:
             raise RenderError("upload a skinned mesh first (it fixes the rig size)")
@@ -311,7 +310,6 @@ class DepthLabelRenderer:
         padded = np.zeros(mesh.label_tex.width * mesh.label_tex.height, np.uint8)
         padded[:len(labels)] = labels
         mesh.label_tex.write(padded.tobytes())
-        mesh.label_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._check("writing the static geometry")
         return GpuMesh(mesh.vao, [], mesh.label_tex, True, ((0, len(f), None),))
 

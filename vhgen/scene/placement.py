@@ -37,21 +37,20 @@ class Disc:
     z: float
     r: float
 
-    def clear_of(self, other: Disc, gap: float = GAP_M) -> bool:
-        # math, not NumPy: called thousands of times per frame on Python floats
-        return math.hypot(self.x - other.x, self.z - other.z) >= self.r + other.r + gap
+
+def wall_clearance(room: Room, xz: np.ndarray) -> np.ndarray:
+    """(K,) signed distance of (K, 2) floor points to the nearest wall, metres (positive
+    inside the room)."""
+    sign, edges = room.edges
+    return np.min([sign * (ex * (xz[:, 1] - az) - ez * (xz[:, 0] - ax)) / length
+                   for ax, az, ex, ez, length in edges], axis=0)
 
 
 def inside(room: Room | None, d: Disc, gap: float = WALL_GAP_M) -> bool:
     """Whether the disc lies inside the room's floor with ``gap`` to every wall (no room:
     always)."""
-    if room is None:
-        return True
-    sign, edges = room.edges
-    for ax, az, ex, ez, length in edges:
-        if sign * (ex * (d.z - az) - ez * (d.x - ax)) / length < d.r + gap:
-            return False
-    return True
+    return room is None or bool(wall_clearance(room, np.array([[d.x, d.z]]))[0]
+                                >= d.r + gap)
 
 
 def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
@@ -81,13 +80,11 @@ def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
 
 def _free_many(xz: np.ndarray, radius: float, others: list[Disc],
                room: Room | None) -> np.ndarray:
-    """:func:`free` for (K, 2) candidate centres of one radius at once: (K,) bool."""
+    """Which of the (K, 2) candidate centres give a disc of ``radius`` inside the room
+    (:func:`inside`) and at least GAP_M from every disc of ``others``: (K,) bool."""
     ok = np.ones(len(xz), bool)
     if room is not None:
-        sign, edges = room.edges
-        for ax, az, ex, ez, length in edges:
-            ok &= sign * (ex * (xz[:, 1] - az) - ez * (xz[:, 0] - ax)) / length \
-                >= radius + WALL_GAP_M
+        ok &= wall_clearance(room, xz) >= radius + WALL_GAP_M
     for o in others:
         ok &= np.hypot(xz[:, 0] - o.x, xz[:, 1] - o.z) >= radius + o.r + GAP_M
     return ok

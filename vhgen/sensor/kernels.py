@@ -166,7 +166,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
     if r2max > 254.0:
-        raise ValueError("correlation_window: splat radius above 15 px")
+        raise ValueError("correlation_window: splat radius above sqrt(254) px (15.9)")
     stray = False  # set on the first dot off the valid pixels
     df = d.reshape(-1)
     db = df.view(np.uint64)
