@@ -169,3 +169,49 @@ def test_ctrl_c_is_one_line_and_stops_the_workers(tmp_path):
     assert r.returncode == 0, r.stderr
     rep = inspect_store(tmp_path / "i.zarr")
     assert rep.ok, rep.defects
+
+
+def test_big_arrays_reach_workers_as_shared_memory_maps(tmp_path):
+    """Arrays of load() of at least SPILL_BYTES are written once and read back as
+    read-only memory maps, equal to what was sent; small ones, dict values below the
+    limit and other values pass unchanged."""
+    import numpy as np
+
+    from vhgen.pipeline import local
+
+    big = np.arange(local.SPILL_BYTES // 8 + 1, dtype=np.float64).reshape(-1, 1)
+    small = np.arange(10)
+    args = (big, small, {"seeds": big.ravel().astype(np.uint64), "n": small}, [1, 2], 0.5)
+    sent = local._spill(args, tmp_path)
+    assert isinstance(sent[0], local._MappedArray) and sent[1] is small
+    assert isinstance(sent[2]["seeds"], local._MappedArray) and sent[2]["n"] is small
+    assert sent[3:] == args[3:]
+    got = local._mapped(sent)
+    assert isinstance(got[0], np.memmap) and not got[0].flags.writeable
+    assert np.array_equal(got[0], big) and got[0].dtype == big.dtype
+    assert np.array_equal(got[2]["seeds"], args[2]["seeds"])
+    assert len(list(tmp_path.glob("*.npy"))) == 2
+
+
+def test_spilled_load_writes_the_same_bytes_and_cleans_up(cfg, tmp_path, monkeypatch):
+    """A job whose every load() array goes through a memory-mapped file writes the same
+    frames as one that pickles them, and leaves no temporary file behind."""
+    import tempfile
+
+    from vhgen.pipeline import local
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+
+    def frames(out: Path) -> dict[str, bytes]:
+        return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+                if p.is_file() and {"depth", "labels"} & set(p.parts)}
+
+    monkeypatch.setattr(local, "SPILL_BYTES", 1)  # every array spilled
+    run_job(cfg, tmp_path / "mapped.zarr", max_frames=8, executor="local")
+    assert list(tmp.iterdir()) == []
+    monkeypatch.setattr(local, "SPILL_BYTES", 1 << 62)  # none
+    run_job(cfg, tmp_path / "pickled.zarr", max_frames=8, executor="local")
+    a, b = frames(tmp_path / "mapped.zarr"), frames(tmp_path / "pickled.zarr")
+    assert len(a) >= 4 and a == b

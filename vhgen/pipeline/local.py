@@ -16,17 +16,23 @@ end-of-file on its socket and exits.
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import os
 import pickle
+import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
+from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from vhgen.config import JobConfig
 from vhgen.errors import RenderError
@@ -34,6 +40,9 @@ from vhgen.errors import RenderError
 log = logging.getLogger(__name__)
 
 _STOP_SECONDS = 5.0  # a worker told to stop that is still alive after this is terminated
+# arrays of load() at least this big reach the workers as one memory-mapped file each
+# instead of a pickled copy per worker (see LocalPool.load)
+SPILL_BYTES = 1 << 20
 
 
 class RemoteTraceback(Exception):
@@ -81,6 +90,8 @@ def serve(fd: int) -> None:
             sys.stderr.flush()
             os._exit(0)
         try:
+            if op == "load":
+                args = _mapped(args)
             reply: tuple[str, Any] = ("ok", getattr(worker, op)(*args))
         except Exception as e:  # sent back whole: the driver decides what the user sees
             text = traceback.format_exc()
@@ -119,6 +130,7 @@ class LocalPool:
         self._retired: list[_Worker] = []  # told to stop, not reaped yet
         self._next_id = 0
         self._load_args: tuple | None = None
+        self._spill_dir: str | None = None
 
     # -- life cycle ------------------------------------------------------------------
     def start(self, n: int) -> list[int]:
@@ -140,10 +152,19 @@ class LocalPool:
 
     def load(self, *args: Any) -> list[str]:
         """Send the poses and the plan to every worker and wait for all of them; returns
-        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here."""
-        self._load_args = args
+        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here.
+
+        Arrays of at least :data:`SPILL_BYTES` (the pose table: 2.2 kB a pose, 0.45 GB
+        for 200k poses), top level or values of a top-level dict, are written once to a
+        temporary folder and reach every worker as a read-only memory map of that file:
+        one copy in the page cache shared by all workers, as Ray's object store does,
+        instead of one pickled copy sent to and held by each. The folder (in the
+        system's temporary directory, ``TMPDIR``) is removed by :meth:`close`."""
+        if self._spill_dir is None:
+            self._spill_dir = tempfile.mkdtemp(prefix="vhgen-load-")
+        self._load_args = _spill(args, Path(self._spill_dir))
         for w in self.workers.values():
-            self._send(w, "load", args)
+            self._send(w, "load", self._load_args)
         return [self._take_load(wid) for wid in list(self.workers)]
 
     def _take_load(self, wid: int) -> str:
@@ -181,6 +202,9 @@ class LocalPool:
             w.conn.close()
         self.workers.clear()
         self._retired.clear()
+        if self._spill_dir is not None:
+            shutil.rmtree(self._spill_dir, ignore_errors=True)
+            self._spill_dir = None
 
     def replace(self, wid: int) -> int:
         """A new, loaded worker in place of the dead one ``wid``; returns its id."""
@@ -261,6 +285,38 @@ def _end(p: subprocess.Popen, seconds: float) -> None:
     except subprocess.TimeoutExpired:
         p.kill()
         p.wait()
+
+
+@dataclass(frozen=True)
+class _MappedArray:
+    """A stand-in for an array written to ``path`` (.npy), read back memory-mapped."""
+
+    path: str
+
+
+def _spill(args: tuple, folder: Path) -> tuple:
+    """``args`` with every big array (top level, or a value of a top-level dict) written
+    to ``folder`` and replaced by a :class:`_MappedArray`."""
+    count = itertools.count()
+
+    def one(a: Any) -> Any:
+        if not isinstance(a, np.ndarray) or a.nbytes < SPILL_BYTES or a.dtype.hasobject:
+            return a
+        path = folder / f"array-{next(count)}.npy"
+        np.save(path, a, allow_pickle=False)
+        return _MappedArray(str(path))
+
+    return tuple({k: one(v) for k, v in a.items()} if isinstance(a, dict) else one(a)
+                 for a in args)
+
+
+def _mapped(args: tuple) -> tuple:
+    """The inverse of :func:`_spill` in a worker: read-only memory maps of the files."""
+    def one(a: Any) -> Any:
+        return np.load(a.path, mmap_mode="r") if isinstance(a, _MappedArray) else a
+
+    return tuple({k: one(v) for k, v in a.items()} if isinstance(a, dict) else one(a)
+                 for a in args)
 
 
 def _with_remote(value: tuple[BaseException, str]) -> BaseException:
