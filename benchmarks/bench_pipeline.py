@@ -10,6 +10,12 @@ and noisy: compare the ratios, not the absolute numbers across runs):
 * skin+render: bone matrices (float64) + one draw call + readback, one process;
 * sensor: gating, noise, 1/8 px quantisation, uint16 mm encoding;
 * write: one Zarr shard of uint16 depth + uint8 labels (zstd) + its manifest part;
+* scene comparison (``--scene``): the scene config's frames beside the person-only ones,
+  interleaved in one process (in memory, then whole shards written), and then both run
+  as jobs (``run_job``, local workers, the configs' worker count), the steady time per
+  frame of a worker side by side. The in-process rows use one llvmpipe thread and one
+  thread for numba/BLAS, as every worker does (the workers are the parallelism); set
+  ``LP_NUM_THREADS`` yourself to see more;
 * end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
   and the same without start-up (render phase only);
 * fixed cost (``--startup`` runs only this): the wall time of a job with zero frames, i.e.
@@ -49,10 +55,16 @@ def main() -> None:
     ap.add_argument("--scene-frames", type=int, default=96,
                     help="frames timed per config for the scene comparison (in memory, "
                          "then end to end: the same frames)")
+    ap.add_argument("--scene-job-frames", type=int, default=240,
+                    help="frames of each job in the scene comparison's job runs (two "
+                         "runs of each config, interleaved); 0 to skip")
     ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
     args = ap.parse_args()
+    for k in ("LP_NUM_THREADS", "NUMBA_NUM_THREADS", "OMP_NUM_THREADS",
+              "OPENBLAS_NUM_THREADS"):
+        os.environ.setdefault(k, "1")  # as in a worker; read when the libraries load
     if args.startup:
         from vhgen.config import JobConfig
 
@@ -131,6 +143,9 @@ def main() -> None:
     if args.scene:
         ratio = _scene_rows(args.scene, args.backend, gen, args.scene_frames, rows,
                             asset_dir)
+        if args.scene_job_frames > 0:
+            ratio = (*ratio, _scene_job_rows(cfg, args.scene, args.backend,
+                                             args.scene_job_frames, rows))
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
@@ -176,6 +191,9 @@ def main() -> None:
               f"(no write): {ratio[0]:.2f}x, {ratio[1]:.2f}x; in memory without the GL "
               f"draw and read back (the CPU share, what a GPU worker approaches): "
               f"{ratio[4]:.2f}x")
+        if len(ratio) > 5:
+            print(f"scene frame / person-only frame, as jobs run them (steady time per "
+                  f"frame of a worker, all workers busy): {ratio[5]:.2f}x")
 
 
 def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[float, ...]:
@@ -252,6 +270,31 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
     rows.append((f"end to end, {full.name} with 1 person (shards)", m, t_e2e[2]))
     return (t_mem[1] / t_mem[0], t_mem[2] / t_mem[0], t_e2e[1] / t_e2e[0],
             t_e2e[2] / t_e2e[0], (t_mem[1] - gl[1]) / (t_mem[0] - gl[0]))
+
+
+def _scene_job_rows(cfg, scene_path, backend, num_frames, rows) -> float:
+    """Both configs run as jobs (local workers, each config's worker count, its first
+    ``num_frames`` frames, with ``poses.frame_step`` 2 so that the builtin motion gives
+    enough of them), twice, interleaved: rows of the steady seconds per frame of one
+    worker (the median over its shards: render, sensor and write, with every worker of
+    the job busy) and their ratio, scene over person-only."""
+    from vhgen.config import JobConfig
+    from vhgen.pipeline.driver import run_job
+
+    full = JobConfig.load(scene_path, backend=backend)
+    steady = [0.0, 0.0]
+    frames = [0, 0]
+    with tempfile.TemporaryDirectory() as tmp:
+        for rep in range(2):
+            for j, c in enumerate((cfg, full)):
+                c = replace(c, poses=replace(c.poses, frame_step=min(c.poses.frame_step, 2)))
+                s = run_job(c, Path(tmp) / f"job{rep}{j}.zarr", max_frames=num_frames,
+                            executor="local", progress=False)
+                steady[j] += s["steady_seconds_per_frame"] * s["frames"]
+                frames[j] += s["frames"]
+    rows.append((f"job, person only, per worker (x{cfg.num_workers})", frames[0], steady[0]))
+    rows.append((f"job, {full.name}, per worker (x{full.num_workers})", frames[1], steady[1]))
+    return (steady[1] / frames[1]) / (steady[0] / frames[0])
 
 
 def _time_gl(gens) -> dict[int, float]:
