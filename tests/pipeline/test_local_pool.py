@@ -215,3 +215,22 @@ def test_spilled_load_writes_the_same_bytes_and_cleans_up(cfg, tmp_path, monkeyp
     run_job(cfg, tmp_path / "pickled.zarr", max_frames=8, executor="local")
     a, b = frames(tmp_path / "mapped.zarr"), frames(tmp_path / "pickled.zarr")
     assert len(a) >= 4 and a == b
+
+
+def test_stale_spill_folders_of_dead_drivers_are_removed(tmp_path, monkeypatch):
+    """A spill folder whose driver no longer runs (killed before close()) goes at the next
+    load; one of a running driver stays."""
+    import tempfile
+
+    from vhgen.pipeline import local
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f"{local._SPILL_PREFIX}{dead.pid}-x1"
+    live = tmp_path / f"{local._SPILL_PREFIX}{os.getpid()}-x2"
+    for d in (stale, live):
+        d.mkdir()
+        (d / "array-0.npy").write_bytes(b"0")
+    local._remove_stale_spills()
+    assert not stale.exists() and live.exists()

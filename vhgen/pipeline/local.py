@@ -43,6 +43,7 @@ _STOP_SECONDS = 5.0  # a worker told to stop that is still alive after this is t
 # arrays of load() at least this big reach the workers as one memory-mapped file each
 # instead of a pickled copy per worker (see LocalPool.load)
 SPILL_BYTES = 1 << 20
+_SPILL_PREFIX = "vhgen-load-"  # + the driver's pid + "-"
 
 
 class RemoteTraceback(Exception):
@@ -159,9 +160,11 @@ class LocalPool:
         temporary folder and reach every worker as a read-only memory map of that file:
         one copy in the page cache shared by all workers, as Ray's object store does,
         instead of one pickled copy sent to and held by each. The folder (in the
-        system's temporary directory, ``TMPDIR``) is removed by :meth:`close`."""
+        system's temporary directory, ``TMPDIR``) is removed by :meth:`close`; one left by
+        a driver that was killed is removed by the next job's load."""
         if self._spill_dir is None:
-            self._spill_dir = tempfile.mkdtemp(prefix="vhgen-load-")
+            _remove_stale_spills()
+            self._spill_dir = tempfile.mkdtemp(prefix=f"{_SPILL_PREFIX}{os.getpid()}-")
         self._load_args = _spill(args, Path(self._spill_dir))
         for w in self.workers.values():
             self._send(w, "load", self._load_args)
@@ -292,6 +295,24 @@ class _MappedArray:
     """A stand-in for an array written to ``path`` (.npy), read back memory-mapped."""
 
     path: str
+
+
+def _remove_stale_spills() -> None:
+    """Remove the spill folders of drivers that no longer run (killed before close())."""
+    for p in Path(tempfile.gettempdir()).glob(f"{_SPILL_PREFIX}*-*"):
+        pid = p.name[len(_SPILL_PREFIX):].split("-", 1)[0]
+        if pid.isdigit() and p.is_dir() and not _running(int(pid)):
+            shutil.rmtree(p, ignore_errors=True)
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # exists, another user's
+    return True
 
 
 def _spill(args: tuple, folder: Path) -> tuple:
