@@ -10,6 +10,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -168,4 +170,62 @@ def test_ctrl_c_is_one_line_and_stops_the_workers(tmp_path):
                        timeout=300)
     assert r.returncode == 0, r.stderr
     rep = inspect_store(tmp_path / "i.zarr")
+    assert rep.ok, rep.defects
+
+
+@contextmanager
+def _deadline(seconds: int) -> Iterator[None]:
+    """Fail (TimeoutError) instead of hanging: the dispatch loop and the pool's reads are
+    in this thread, so the alarm's exception unwinds the job and closes its workers."""
+    def expire(signum: int, frame: object) -> None:
+        raise TimeoutError(f"the job did not end within {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_replacement_dying_in_setup_is_retried(cfg, tmp_path):
+    """A worker dies on shard 0; its replacement dies in its own set-up (a GL driver
+    crash, an OOM kill): that counts as one more attempt on the shard, the next
+    replacement finishes it, and every frame is written exactly once."""
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "setup-once.zarr"
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor="local",
+                          faults={"die_once": {0}, "die_in_setup": 1})
+    assert summary["frames"] == 16 and summary["written"] == 4
+    assert summary["retries"] == 2  # the death on the shard, the death in set-up
+    rep = inspect_store(out)
+    assert rep.ok, rep.defects
+    man = pq.read_table(out / "manifest.parquet")
+    assert man.column("frame").to_pylist() == list(range(16))
+
+
+def test_replacement_always_dying_in_setup_ends_in_one_line(cfg, tmp_path):
+    """Every replacement dies in its set-up: after MAX_ATTEMPTS retries of the shard the
+    job ends with one line (no hang, no WorkerDied traceback), the shards the other
+    worker finished stay, and --resume completes the store."""
+    from vhgen.pipeline.driver import MAX_ATTEMPTS
+
+    out = tmp_path / "setup-always.zarr"
+    with _deadline(120), pytest.raises(VhgenError) as info:
+        run_job(cfg, out, max_frames=16, executor="local",
+                faults={"die_once": {0}, "die_in_setup": 100})
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert f"shard 0 (frames 0-4): worker died {MAX_ATTEMPTS + 1} times; rerun with " \
+        "--resume" in msg
+    parts = {p.name for p in (out / "manifest").glob("part-*.parquet")}
+    assert "part-000000.parquet" not in parts
+    assert parts, "the shards the other worker finished were not kept"
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor="local", resume=True)
+    assert summary["written"] == 4 - len(parts)  # only what was missing
+    rep = inspect_store(out)
     assert rep.ok, rep.defects

@@ -26,7 +26,9 @@ class FrameWorker:
     first time one of those shards is attempted; ``{"write_error": (errno, shards)}`` makes
     writing those shards fail with that OSError; ``{"setup_error": message}`` makes the
     set-up fail with a RenderError; ``{"crash": shards}`` raises a plain bug (RuntimeError)
-    on those shards.
+    on those shards. With ``die_once``, ``{"die_in_setup": n}`` kills the process in
+    :meth:`load` of a replacement worker (one loading after a ``die_once`` death), the
+    first ``n`` times.
     """
 
     def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
@@ -69,6 +71,8 @@ class FrameWorker:
         shards); returns the GL renderer string."""
         from vhgen.pipeline.frames import FrameGenerator
 
+        if "die_in_setup" in self.faults:
+            _die_in_setup(self.faults)
         if self.setup_error is not None:
             raise self.setup_error
         self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
@@ -105,3 +109,17 @@ class FrameWorker:
         t = time.perf_counter()
         result = self.gen.run_task(store, shard, start, stop)
         return {**result, "seconds": time.perf_counter() - t}
+
+
+def _die_in_setup(faults: dict) -> None:
+    """The ``die_in_setup`` fault: end the process as a crash in set-up would, if a
+    worker died on a shard before (this one is its replacement), at most ``n`` times."""
+    folder = Path(faults["die_once"][0])
+    if not any(folder.glob("failed-*")):
+        return  # a first worker: the job's own set-up must succeed
+    for k in range(faults["die_in_setup"]):
+        try:  # O_EXCL: two replacements loading at once never both take the same turn
+            (folder / f"setup-died-{k}").open("x").close()
+        except FileExistsError:
+            continue
+        os._exit(1)
