@@ -1,7 +1,9 @@
 """The local executor: frame workers in child processes of the driver, without Ray.
 
-Which executor a job gets, what the user sees when a worker fails, that a user's script
-needs no ``if __name__ == "__main__"`` guard, and that no worker outlives its driver."""
+Which executor a job gets, what the user sees when a worker fails, that a replacement
+worker sets up without holding up the job and that its death or failure in set-up is
+retried or reported like any other, that a user's script needs no
+``if __name__ == "__main__"`` guard, and that no worker outlives its driver."""
 
 from __future__ import annotations
 
@@ -189,7 +191,8 @@ def _deadline(seconds: int) -> Iterator[None]:
         signal.signal(signal.SIGALRM, previous)
 
 
-def test_replacement_dying_in_setup_is_retried(cfg, tmp_path):
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+def test_replacement_dying_in_setup_is_retried(cfg, tmp_path, executor):
     """A worker dies on shard 0; its replacement dies in its own set-up (a GL driver
     crash, an OOM kill): that counts as one more attempt on the shard, the next
     replacement finishes it, and every frame is written exactly once."""
@@ -197,7 +200,7 @@ def test_replacement_dying_in_setup_is_retried(cfg, tmp_path):
 
     out = tmp_path / "setup-once.zarr"
     with _deadline(120):
-        summary = run_job(cfg, out, max_frames=16, executor="local",
+        summary = run_job(cfg, out, max_frames=16, executor=executor,
                           faults={"die_once": {0}, "die_in_setup": 1})
     assert summary["frames"] == 16 and summary["written"] == 4
     assert summary["retries"] == 2  # the death on the shard, the death in set-up
@@ -222,10 +225,38 @@ def test_replacement_always_dying_in_setup_ends_in_one_line(cfg, tmp_path):
     assert f"shard 0 (frames 0-4): worker died {MAX_ATTEMPTS + 1} times; rerun with " \
         "--resume" in msg
     parts = {p.name for p in (out / "manifest").glob("part-*.parquet")}
-    assert "part-000000.parquet" not in parts
     assert parts, "the shards the other worker finished were not kept"
+    assert parts <= {f"part-{k:06d}.parquet" for k in (1, 2, 3)}
     with _deadline(120):
         summary = run_job(cfg, out, max_frames=16, executor="local", resume=True)
     assert summary["written"] == 4 - len(parts)  # only what was missing
+    rep = inspect_store(out)
+    assert rep.ok, rep.defects
+
+
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+def test_replacement_setup_error_is_one_line(cfg, tmp_path, executor):
+    """A replacement whose set-up fails with a user-facing error (no GL device left)
+    ends the job with that error for the shard it was to redo, in one line."""
+    with _deadline(120), pytest.raises(VhgenError) as info:
+        run_job(cfg, tmp_path / "setup-error.zarr", max_frames=16, executor=executor,
+                faults={"die_once": {0}, "replacement_setup_error":
+                        "cannot create an egl OpenGL context: no device"})
+    assert str(info.value) == "shard 0: cannot create an egl OpenGL context: no device"
+
+
+def test_dispatch_goes_on_while_a_replacement_sets_up(cfg, tmp_path):
+    """The replacement of the worker that died on shard 0 cannot finish its set-up
+    before the other worker has written shards 1-3: the driver must keep handing that
+    worker shards meanwhile (it used to block until the replacement was loaded)."""
+    out = tmp_path / "overlap.zarr"
+    others = [str(out / "manifest" / f"part-{k:06d}.parquet") for k in (1, 2, 3)]
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor="local",
+                          faults={"die_once": {0}, "replacement_waits_for": others})
+    assert summary["written"] == 4 and summary["retries"] == 1
+    parts = {k: (out / "manifest" / f"part-{k:06d}.parquet").stat().st_mtime_ns
+             for k in range(4)}
+    assert parts[0] > max(parts[1], parts[2], parts[3])  # the retried shard came last
     rep = inspect_store(out)
     assert rep.ok, rep.defects
