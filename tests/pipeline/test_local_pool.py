@@ -1,7 +1,9 @@
 """The local executor: frame workers in child processes of the driver, without Ray.
 
-Which executor a job gets, what the user sees when a worker fails, that a user's script
-needs no ``if __name__ == "__main__"`` guard, and that no worker outlives its driver."""
+Which executor a job gets, what the user sees when a worker fails, that a replacement
+worker sets up without holding up the job and that its death or failure in set-up is
+retried or reported like any other, that a user's script needs no
+``if __name__ == "__main__"`` guard, and that no worker outlives its driver."""
 
 from __future__ import annotations
 
@@ -10,6 +12,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -234,3 +238,90 @@ def test_stale_spill_folders_of_dead_drivers_are_removed(tmp_path, monkeypatch):
         (d / "array-0.npy").write_bytes(b"0")
     local._remove_stale_spills()
     assert not stale.exists() and live.exists()
+
+
+@contextmanager
+def _deadline(seconds: int) -> Iterator[None]:
+    """Fail (TimeoutError) instead of hanging: the dispatch loop and the pool's reads are
+    in this thread, so the alarm's exception unwinds the job and closes its workers."""
+    def expire(signum: int, frame: object) -> None:
+        raise TimeoutError(f"the job did not end within {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+def test_replacement_dying_in_setup_is_retried(cfg, tmp_path, executor):
+    """A worker dies on shard 0; its replacement dies in its own set-up (a GL driver
+    crash, an OOM kill): that counts as one more attempt on the shard, the next
+    replacement finishes it, and every frame is written exactly once."""
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "setup-once.zarr"
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor=executor,
+                          faults={"die_once": {0}, "die_in_setup": 1})
+    assert summary["frames"] == 16 and summary["written"] == 4
+    assert summary["retries"] == 2  # the death on the shard, the death in set-up
+    rep = inspect_store(out)
+    assert rep.ok, rep.defects
+    man = pq.read_table(out / "manifest.parquet")
+    assert man.column("frame").to_pylist() == list(range(16))
+
+
+def test_replacement_always_dying_in_setup_ends_in_one_line(cfg, tmp_path):
+    """Every replacement dies in its set-up: after MAX_ATTEMPTS retries of the shard the
+    job ends with one line (no hang, no WorkerDied traceback), the shards the other
+    worker finished stay, and --resume completes the store."""
+    from vhgen.pipeline.driver import MAX_ATTEMPTS
+
+    out = tmp_path / "setup-always.zarr"
+    with _deadline(120), pytest.raises(VhgenError) as info:
+        run_job(cfg, out, max_frames=16, executor="local",
+                faults={"die_once": {0}, "die_in_setup": 100})
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert f"shard 0 (frames 0-4): worker died {MAX_ATTEMPTS + 1} times; rerun with " \
+        "--resume" in msg
+    parts = {p.name for p in (out / "manifest").glob("part-*.parquet")}
+    assert parts, "the shards the other worker finished were not kept"
+    assert parts <= {f"part-{k:06d}.parquet" for k in (1, 2, 3)}
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor="local", resume=True)
+    assert summary["written"] == 4 - len(parts)  # only what was missing
+    rep = inspect_store(out)
+    assert rep.ok, rep.defects
+
+
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+def test_replacement_setup_error_is_one_line(cfg, tmp_path, executor):
+    """A replacement whose set-up fails with a user-facing error (no GL device left)
+    ends the job with that error for the shard it was to redo, in one line."""
+    with _deadline(120), pytest.raises(VhgenError) as info:
+        run_job(cfg, tmp_path / "setup-error.zarr", max_frames=16, executor=executor,
+                faults={"die_once": {0}, "replacement_setup_error":
+                        "cannot create an egl OpenGL context: no device"})
+    assert str(info.value) == "shard 0: cannot create an egl OpenGL context: no device"
+
+
+def test_dispatch_goes_on_while_a_replacement_sets_up(cfg, tmp_path):
+    """The replacement of the worker that died on shard 0 cannot finish its set-up
+    before the other worker has written shards 1-3: the driver must keep handing that
+    worker shards meanwhile (it used to block until the replacement was loaded)."""
+    out = tmp_path / "overlap.zarr"
+    others = [str(out / "manifest" / f"part-{k:06d}.parquet") for k in (1, 2, 3)]
+    with _deadline(120):
+        summary = run_job(cfg, out, max_frames=16, executor="local",
+                          faults={"die_once": {0}, "replacement_waits_for": others})
+    assert summary["written"] == 4 and summary["retries"] == 1
+    parts = {k: (out / "manifest" / f"part-{k:06d}.parquet").stat().st_mtime_ns
+             for k in range(4)}
+    assert parts[0] > max(parts[1], parts[2], parts[3])  # the retried shard came last
+    rep = inspect_store(out)
+    assert rep.ok, rep.defects

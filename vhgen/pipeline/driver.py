@@ -368,6 +368,8 @@ class _RayPool:
             _shutdown_local_ray(self.ray)
 
     def replace(self, wid: int) -> int:
+        """A new actor in place of the dead one ``wid``, its load queued; returns at once
+        (a run submitted to it fails as ``died`` if it dies loading)."""
         self.workers.pop(wid, None)
         new = self._new()
         if self._load_args is not None:  # queued before any run() on the same actor
@@ -497,8 +499,9 @@ def _dispatch(pool: Any, todo: list, out: Path, bar: Progress, merger: ManifestM
               ) -> tuple[list[dict], dict[int, int], float | None]:
     """Run every task on the pool's workers (one in flight per worker), handing each
     finished shard's manifest part to ``merger``. A worker that died is replaced and its
-    shard redone whole. On a write failure, stop dispatching, let the tasks in flight
-    finish, then raise one line."""
+    shard redone whole (the replacement sets up while the others go on; dying in its
+    set-up counts as one more attempt on the shard). On a write failure, stop
+    dispatching, let the tasks in flight finish, then raise one line."""
     queue = list(todo)
     attempts = {t.shard: 0 for t in todo}
     results: list[dict] = []

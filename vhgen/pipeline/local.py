@@ -5,7 +5,10 @@ A local Ray costs 3-6 s to start and about 1 s to stop on a small machine
 machine the driver therefore runs its :class:`~vhgen.pipeline.worker.FrameWorker` s in
 plain child processes, one socket pair each. The contract is the Ray path's: workers set
 up while the driver plans, every shard is written by its worker, a worker that dies is
-replaced and its shard redone whole, so no frame is lost or duplicated.
+replaced and its shard redone whole, so no frame is lost or duplicated. A replacement
+sets up while the other workers go on: the dispatch never waits for it, and one that dies
+or fails in its set-up answers its first shard with that (the dispatch counts a death as
+an attempt on the shard, as for a Ray actor that dies loading).
 
 A child is a fresh interpreter started with ``python -c`` on the driver's ``sys.path``,
 not a ``multiprocessing`` spawn: spawn re-runs the caller's main script in every child,
@@ -26,6 +29,8 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
@@ -113,6 +118,11 @@ class _Worker:
     conn: Connection
     busy: Any = None  # the task in flight
     stopping: bool = False  # told to stop
+    # a replacement: its set-up (the reply to "load") is not read yet, and the run of
+    # the task submitted meanwhile waits here for it (None: no task yet)
+    loading: bool = False
+    deferred: tuple | None = None
+    writer: threading.Thread | None = None  # sends the poses and plan to a replacement
 
 
 class WorkerDied(RenderError):
@@ -153,7 +163,8 @@ class LocalPool:
 
     def load(self, *args: Any) -> list[str]:
         """Send the poses and the plan to every worker and wait for all of them; returns
-        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here.
+        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here,
+        a worker that dies setting up raises :class:`WorkerDied`.
 
         Arrays of at least :data:`SPILL_BYTES` (the pose table: 2.2 kB a pose, 0.45 GB
         for 200k poses), top level or values of a top-level dict, are written once to a
@@ -190,9 +201,10 @@ class LocalPool:
             self._retired.append(w)
 
     def release(self) -> None:
-        """Tell every idle worker to stop, without waiting (close() reaps them)."""
+        """Tell every idle worker to stop, without waiting (close() reaps them). A
+        replacement still setting up is not told: close() terminates it."""
         for w in self.workers.values():
-            if w.busy is None and not w.stopping:
+            if w.busy is None and not w.stopping and not w.loading:
                 w.stopping = True
                 self._send(w, "stop", ())
 
@@ -200,9 +212,10 @@ class LocalPool:
         """Stop every worker; the ones that do not stop in time are terminated."""
         self.release()
         for w in [*self.workers.values(), *self._retired]:
-            # a worker still busy (an error stopped the job) is not waited for
-            _end(w.process, _STOP_SECONDS if w.busy is None else 0.0)
-            w.conn.close()
+            # a worker still busy (an error stopped the job) or still setting up holds
+            # no finished work: it is not waited for
+            _end(w.process, _STOP_SECONDS if w.busy is None and not w.loading else 0.0)
+            _close(w)
         self.workers.clear()
         self._retired.clear()
         if self._spill_dir is not None:
@@ -210,14 +223,23 @@ class LocalPool:
             self._spill_dir = None
 
     def replace(self, wid: int) -> int:
-        """A new, loaded worker in place of the dead one ``wid``; returns its id."""
+        """Start a new worker in place of the dead one ``wid`` and return its id at once.
+
+        Its set-up and load go on while the dispatch collects the other workers' shards:
+        a task submitted to it runs after its load, and if it dies or fails setting up,
+        :meth:`wait` answers that task with ``died`` or ``error``."""
         old = self.workers.pop(wid)
-        old.conn.close()
         _end(old.process, 1.0)
+        _close(old)
         new = self._spawn()
         if self._load_args is not None:
-            self._send(self.workers[new], "load", self._load_args)
-            self._take_load(new)
+            w = self.workers[new]
+            w.loading = True
+            # from a thread: the poses and plan are larger than the socket's buffer, so
+            # sending them blocks until the new worker has set up and reads them
+            w.writer = threading.Thread(target=_write, args=(w.conn, ("load", self._load_args)),
+                                        name=f"vhgen-load-{new}", daemon=True)
+            w.writer.start()
         return new
 
     # -- tasks -----------------------------------------------------------------------
@@ -225,34 +247,57 @@ class LocalPool:
         """Run ``worker.run(*args)`` on worker ``wid``; ``task`` is returned by wait()."""
         w = self.workers[wid]
         w.busy = task
-        self._send(w, "run", args)
+        if w.loading:
+            w.deferred = args  # sent by wait() once the load has succeeded
+        else:
+            self._send(w, "run", args)
 
     def wait(self, timeout: float | None = None) -> list[tuple[int, Any, str, Any]]:
         """Block until at least one busy worker answers or dies, or ``timeout`` seconds
         pass (then: an empty list). Returns ``(worker id, task, kind, value)`` with kind
         ``ok`` (value: the result), ``died`` (value: the exit code) or ``error`` (value:
-        the exception, its ``__cause__`` the worker's traceback)."""
-        busy = {wid: w for wid, w in self.workers.items() if w.busy is not None}
-        if not busy:
-            return []
-        # a dead worker's socket reads as end-of-file: readable, like a reply
-        handles = {w.conn: wid for wid, w in busy.items()}
-        ready = {handles[h] for h in wait(list(handles), timeout)}  # type: ignore[index]
-        out = []
-        for wid in sorted(ready):
-            w = self.workers[wid]
-            kind, value = self._recv(wid)
-            task, w.busy = w.busy, None
-            out.append((wid, task, kind,
-                        _with_remote(value) if kind == "error" else value))
-        return out
+        the exception, its ``__cause__`` the worker's traceback).
+
+        A busy replacement answers its load first: a load that succeeded is not
+        reported (the task's run is sent then, its reply comes later); one that died
+        or raised answers the task with ``died`` or ``error``, as :meth:`load` would
+        have raised it."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            busy = {wid: w for wid, w in self.workers.items() if w.busy is not None}
+            if not busy:
+                return []
+            # a dead worker's socket reads as end-of-file: readable, like a reply. A
+            # replacement has one request in flight at a time (its run is sent only after
+            # its load's reply), so each readable socket holds the answer to that one
+            handles = {w.conn: wid for wid, w in busy.items()}
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            ready = {handles[h] for h in wait(list(handles), left)}  # type: ignore[index]
+            out = []
+            for wid in sorted(ready):
+                w = self.workers[wid]
+                kind, value = self._recv(wid)
+                if w.loading:
+                    w.loading = False
+                    if kind == "ok":  # set up and loaded: now the task
+                        self._send(w, "run", w.deferred or ())
+                        w.deferred = None
+                        continue
+                    w.deferred = None
+                task, w.busy = w.busy, None
+                out.append((wid, task, kind,
+                            _with_remote(value) if kind == "error" else value))
+            # a load that succeeded is no answer: wait on, for what time is left
+            if out or (not ready and deadline is not None and time.monotonic() >= deadline):
+                return out
 
     # -- pipe ------------------------------------------------------------------------
     def _send(self, w: _Worker, op: str, args: tuple) -> None:
-        try:
-            w.conn.send((op, args))
-        except OSError:
-            pass  # the worker is dead: its socket reads as end-of-file in wait()
+        if w.writer is not None:
+            # the load goes first: sent by now (only called once the worker replied or
+            # for a worker that is not loading)
+            w.writer.join()
+        _write(w.conn, (op, args))
 
     def _recv(self, wid: int) -> tuple[str, Any]:
         """The worker's next reply, or ``("died", exit code)``; a reply sent just before
@@ -338,6 +383,22 @@ def _mapped(args: tuple) -> tuple:
 
     return tuple({k: one(v) for k, v in a.items()} if isinstance(a, dict) else one(a)
                  for a in args)
+
+
+def _write(conn: Connection, message: tuple) -> None:
+    try:
+        conn.send(message)
+    except OSError:
+        pass  # the worker is dead: its socket reads as end-of-file in wait()
+
+
+def _close(w: _Worker) -> None:
+    """Close the driver's end of a worker's socket, once its process has ended (a load
+    still being sent then fails at once) and nothing writes to it any more (closing a
+    descriptor another thread writes to could let a new socket reuse its number)."""
+    if w.writer is not None:
+        w.writer.join()
+    w.conn.close()
 
 
 def _with_remote(value: tuple[BaseException, str]) -> BaseException:

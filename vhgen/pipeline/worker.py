@@ -26,7 +26,11 @@ class FrameWorker:
     first time one of those shards is attempted; ``{"write_error": (errno, shards)}`` makes
     writing those shards fail with that OSError; ``{"setup_error": message}`` makes the
     set-up fail with a RenderError; ``{"crash": shards}`` raises a plain bug (RuntimeError)
-    on those shards.
+    on those shards. With ``die_once``, faults of a replacement worker (one loading after
+    a ``die_once`` death): ``{"die_in_setup": n}`` kills the process in :meth:`load`, the
+    first ``n`` times; ``{"replacement_setup_error": message}`` makes its load fail with a
+    RenderError; ``{"replacement_waits_for": paths}`` holds its load until these files
+    exist (a RenderError after 30 s).
     """
 
     def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
@@ -71,14 +75,24 @@ class FrameWorker:
 
         if self.setup_error is not None:
             raise self.setup_error
-        self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
-                                  plan_arrays, avatars, context=self.ctx, bodies=bodies,
-                                  base_hip_drop=base_hip_drop)
+        try:
+            if "die_once" in self.faults:
+                _replacement_faults(self.faults)
+            self.gen = FrameGenerator(self.cfg, self.asset_dir, rotations, roots, pose_meta,
+                                      plan_arrays, avatars, context=self.ctx, bodies=bodies,
+                                      base_hip_drop=base_hip_drop)
+        except VhgenError as e:
+            self.setup_error = e  # raised again by run(): a task after a failed load
+            raise
         return str(self.gen.renderer_info)
 
     def run(self, store: str, shard: int, start: int, stop: int) -> dict:
         """Render and write frames ``start:stop`` as shard ``shard`` of ``store``; returns
-        the shard's metadata and its ``seconds``."""
+        the shard's metadata and its ``seconds``. A worker whose set-up or load failed
+        raises that error again (a Ray actor runs a task queued after its load even
+        when the load raised)."""
+        if self.gen is None:
+            raise self.setup_error or RuntimeError("FrameWorker.run before load")
         die = self.faults.get("die_once")
         if die is not None and shard in die[1]:
             # die as a killed process would, the first time this shard is attempted
@@ -105,3 +119,26 @@ class FrameWorker:
         t = time.perf_counter()
         result = self.gen.run_task(store, shard, start, stop)
         return {**result, "seconds": time.perf_counter() - t}
+
+
+def _replacement_faults(faults: dict) -> None:
+    """``die_in_setup``, ``replacement_setup_error`` and ``replacement_waits_for``, in a
+    worker loading after a worker died on a shard (its replacement): the job's first
+    workers set up unharmed."""
+    folder = Path(faults["die_once"][0])
+    if not any(folder.glob("failed-*")):
+        return
+    if "replacement_setup_error" in faults:
+        raise RenderError(faults["replacement_setup_error"])
+    waits = [Path(p) for p in faults.get("replacement_waits_for", ())]
+    deadline = time.monotonic() + 30.0
+    while not all(p.exists() for p in waits):
+        if time.monotonic() > deadline:
+            raise RenderError(f"waited 30 s in set-up for {[str(p) for p in waits]}")
+        time.sleep(0.05)
+    for k in range(faults.get("die_in_setup", 0)):
+        try:  # O_EXCL: two replacements loading at once never both take the same turn
+            (folder / f"setup-died-{k}").open("x").close()
+        except FileExistsError:
+            continue
+        os._exit(1)  # as a GL driver crash or an OOM kill in the set-up would
