@@ -335,7 +335,8 @@ def _cmd_preview(args: argparse.Namespace) -> int:
     if args.frames and max(args.frames) >= n:
         raise ConfigError(None, "--frames", f"{args.store} holds frames 0..{n - 1}, "
                                             f"not {max(args.frames)}")
-    out = contact_sheet(args.store, args.output, num_frames=args.num, frames=args.frames)
+    out = contact_sheet(args.store, args.output, num_frames=args.num, frames=args.frames,
+                        joints=args.joints)
     print(f"wrote {out}")
     return 0
 
@@ -348,6 +349,9 @@ def _add_preview(sub: _Sub) -> None:
     v.add_argument("-n", "--num", type=A.int_range(1, 1000), default=6,
                    help="number of frames (1-1000)")
     v.add_argument("--frames", type=A.frame_list(), help="comma-separated frame indices")
+    v.add_argument("--joints", action="store_true",
+                   help="draw each person's 2D joints from the manifest on the labels "
+                        "(filled: visible, ring: occluded or outside the image)")
 
 
 def _cmd_info(args: argparse.Namespace) -> int:

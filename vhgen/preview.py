@@ -67,10 +67,52 @@ def _scene_tiles(root, frames: list[int]) -> bool:
     return False
 
 
+def _people_joints(store: Path, frames: list[int]) -> dict[int, list[tuple]]:
+    """frame -> [(instance, (J, 2) float pixels, (J,) bool visible)] from the manifest."""
+    import pyarrow.parquet as pq
+
+    from vhgen.errors import StoreError
+    from vhgen.store.zarr_store import MANIFEST_FILE
+
+    path = store / MANIFEST_FILE
+    if not path.is_file():
+        raise StoreError(f"{path}: no manifest (an unfinished job? run it again with "
+                         f"--resume)")
+    table = pq.read_table(path, columns=["frame", "people"],
+                          filters=[("frame", "in", [int(f) for f in frames])])
+    out: dict[int, list[tuple]] = {}
+    for f, people in zip(table.column("frame").to_pylist(), table.column("people").to_pylist(),
+                         strict=True):
+        out[f] = [(p["instance"], np.asarray(p["joints_px"], np.float64).reshape(-1, 2),
+                   np.asarray(p["joints_visible"], bool)) for p in people or []]
+    return out
+
+
+def _draw_joints(draw, people: list[tuple], x0: int, y0: int, scale: float,
+                 size: tuple[int, int]) -> None:
+    """Each person's 2D joints on the tile at (x0, y0): a filled dot where the joint is
+    visible, a ring where it is not (occluded or outside), in the person's instance
+    colour."""
+    w, h = size
+    for instance, px, visible in people:
+        color = tuple(int(c) for c in INSTANCE_COLORS[(instance - 1) % 7 + 1])
+        for (u, v), vis in zip(px, visible, strict=True):
+            if not (0 <= u < w and 0 <= v < h):
+                continue
+            x, y = x0 + (u + 0.5) * scale, y0 + (v + 0.5) * scale
+            box = [x - 2.5, y - 2.5, x + 2.5, y + 2.5]
+            if vis:
+                draw.ellipse(box, fill=color, outline=(255, 255, 255))
+            else:
+                draw.ellipse(box, outline=color)
+
+
 def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
-                  frames: list[int] | None = None, scale: float = 0.5) -> Path:
+                  frames: list[int] | None = None, scale: float = 0.5,
+                  joints: bool = False) -> Path:
     """Write a PNG with up to ``num_frames`` evenly spaced frames (depth | labels, and
-    instances | classes for scenes) + legend."""
+    instances | classes for scenes) + legend. ``joints``: every person's 2D joints from
+    the manifest drawn on the labels tile (filled: visible, ring: occluded or outside)."""
     from PIL import Image, ImageDraw, ImageFont
 
     root = open_store(store)
@@ -83,12 +125,14 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
     h, w = depth.shape[1:]
     th, tw = int(h * scale), int(w * scale)
     scene = _scene_tiles(root, frames)
+    people = _people_joints(Path(store), frames) if joints else {}
     class_names = list(root.attrs.get("class_names", []))
     class_colors = class_palette(len(class_names))
     cols = 4 if scene else 2
     rows = len(frames)
     legend_w = 190
-    legend_h = 14 * len(names) + 40 + (14 * len(class_names) + 30 if scene else 0)
+    legend_h = (14 * len(names) + 40 + (14 * len(class_names) + 30 if scene else 0)
+                + (40 if joints else 0))
     sheet = Image.new("RGB", (cols * tw + legend_w, max(rows * (th + 16), legend_h)),
                       (255, 255, 255))
     draw = ImageDraw.Draw(sheet)
@@ -110,12 +154,20 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         for c, tile in enumerate(tiles):
             img = Image.fromarray(tile).resize((tw, th), Image.Resampling.NEAREST)
             sheet.paste(img, (c * tw, y + 14))
+        if joints:
+            _draw_joints(draw, people.get(f, []), tw, y + 14, tw / w, (w, h))
     x0 = cols * tw + 8
     draw.text((x0, 4), "labels (subject's L/R)", fill=(0, 0, 0), font=font)
     for k, name in enumerate(names, start=1):
         y = 20 + (k - 1) * 14
         draw.rectangle([x0, y, x0 + 12, y + 10], fill=tuple(int(c) for c in palette[k]))
         draw.text((x0 + 18, y - 1), f"{k:2d} {name}", fill=(0, 0, 0), font=font)
+    if joints:
+        y = 20 + len(names) * 14 + (14 * len(class_names) + 30 if scene else 0) + 10
+        draw.ellipse([x0 + 3, y + 2, x0 + 9, y + 8], fill=(80, 80, 80))
+        draw.text((x0 + 18, y - 1), "joint visible", fill=(0, 0, 0), font=font)
+        draw.ellipse([x0 + 3, y + 16, x0 + 9, y + 22], outline=(80, 80, 80))
+        draw.text((x0 + 18, y + 13), "joint hidden", fill=(0, 0, 0), font=font)
     if scene:
         y = 20 + len(names) * 14 + 10
         draw.text((x0, y), "classes", fill=(0, 0, 0), font=font)

@@ -286,6 +286,27 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
     sheet = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "s.png",
                                                 num_frames=2)))
     assert sheet.shape[1] >= 4 * 320
+    # --joints: each person's 2D joints on the labels tile (x 320 .. 640, from y 14 on
+    # the first row at scale 0.5), a dot of the instance colour where visible, a ring
+    # (the labels' own colour at the centre) where not
+    from vhgen.preview import INSTANCE_COLORS
+
+    plain = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "p.png",
+                                                frames=[0])))
+    marked = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "j.png",
+                                                 frames=[0], joints=True)))
+    seen = {True: 0, False: 0}
+    for person in rows[0]["people"]:
+        color = INSTANCE_COLORS[(person["instance"] - 1) % 7 + 1]
+        px = np.asarray(person["joints_px"]).reshape(-1, 2)
+        for (u, v), vis in zip(px, person["joints_visible"], strict=True):
+            if 4 <= u < 636 and 4 <= v < 476:
+                x, y = 320 + int((u + 0.5) / 2), 14 + int((v + 0.5) / 2)
+                centre_is_dot = (marked[y, x, :3] == color).all()
+                assert centre_is_dot == vis or (plain[y, x, :3] == color).all()
+                seen[bool(vis)] += 1
+    assert seen[True] > 0 and seen[False] > 0
+    assert not np.array_equal(plain[:, 320:640], marked[:, 320:640])
     # objects that did not fit are counted, in the summary and per frame
     for k in ("people", "props"):
         assert summary["dropped"][k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)
