@@ -43,6 +43,13 @@ INSTANCE_COLORS = np.array([[0, 0, 0], [230, 25, 75], [60, 180, 75], [0, 130, 20
                            np.uint8)
 
 
+def instance_colors(instances: np.ndarray | int) -> np.ndarray:
+    """(..., 3) uint8 colour of person instances (0 = no person: black; 1, 2, ... cycle
+    through the seven INSTANCE_COLORS after it)."""
+    k = np.asarray(instances, np.int64)
+    return INSTANCE_COLORS[np.where(k == 0, 0, (k - 1) % (len(INSTANCE_COLORS) - 1) + 1)]
+
+
 def class_palette(num_classes: int) -> np.ndarray:
     """(max(num_classes, 8), 3) uint8 colours of scene classes: the shipped classes keep
     CLASS_COLORS; user classes beyond take turbo colours at golden-ratio steps (distinct,
@@ -95,7 +102,7 @@ def _draw_joints(draw, people: list[tuple], x0: int, y0: int, scale: float,
     colour."""
     w, h = size
     for instance, px, visible in people:
-        color = tuple(int(c) for c in INSTANCE_COLORS[(instance - 1) % 7 + 1])
+        color = tuple(int(c) for c in instance_colors(instance))
         for (u, v), vis in zip(px, visible, strict=True):
             if not (0 <= u < w and 0 <= v < h):
                 continue
@@ -145,7 +152,7 @@ def contact_sheet(store: str | Path, out: str | Path, *, num_frames: int = 6,
         if scene:
             inst = np.asarray(root["instances"][f])
             cls = np.asarray(root["classes"][f])
-            tiles += [INSTANCE_COLORS[np.where(inst == 0, 0, (inst - 1) % 7 + 1)],
+            tiles += [instance_colors(inst),
                       class_colors[np.minimum(cls, len(class_colors) - 1)]]
             titles += ["instances", "classes"]
         y = r * (th + 16)

@@ -289,7 +289,7 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
     # --joints: each person's 2D joints on the labels tile (x 320 .. 640, from y 14 on
     # the first row at scale 0.5), a dot of the instance colour where visible, a ring
     # (the labels' own colour at the centre) where not
-    from vhgen.preview import INSTANCE_COLORS
+    from vhgen.preview import instance_colors
 
     plain = np.asarray(Image.open(contact_sheet(tmp_path / "two.zarr", tmp_path / "p.png",
                                                 frames=[0])))
@@ -297,7 +297,7 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
                                                  frames=[0], joints=True)))
     seen = {True: 0, False: 0}
     for person in rows[0]["people"]:
-        color = INSTANCE_COLORS[(person["instance"] - 1) % 7 + 1]
+        color = instance_colors(person["instance"])
         px = np.asarray(person["joints_px"]).reshape(-1, 2)
         for (u, v), vis in zip(px, person["joints_visible"], strict=True):
             if 4 <= u < 636 and 4 <= v < 476:
