@@ -360,9 +360,16 @@ def _running(pid: int) -> bool:
     return True
 
 
+def _each_array(args: tuple, fn: Any) -> tuple:
+    """``args`` with ``fn`` applied to each top-level value and each value of a top-level
+    dict (where load()'s arrays are)."""
+    return tuple({k: fn(v) for k, v in a.items()} if isinstance(a, dict) else fn(a)
+                 for a in args)
+
+
 def _spill(args: tuple, folder: Path) -> tuple:
-    """``args`` with every big array (top level, or a value of a top-level dict) written
-    to ``folder`` and replaced by a :class:`_MappedArray`."""
+    """``args`` with every big array (see :func:`_each_array`) written to ``folder`` and
+    replaced by a :class:`_MappedArray`."""
     count = itertools.count()
 
     def one(a: Any) -> Any:
@@ -372,17 +379,13 @@ def _spill(args: tuple, folder: Path) -> tuple:
         np.save(path, a, allow_pickle=False)
         return _MappedArray(str(path))
 
-    return tuple({k: one(v) for k, v in a.items()} if isinstance(a, dict) else one(a)
-                 for a in args)
+    return _each_array(args, one)
 
 
 def _mapped(args: tuple) -> tuple:
     """The inverse of :func:`_spill` in a worker: read-only memory maps of the files."""
-    def one(a: Any) -> Any:
-        return np.load(a.path, mmap_mode="r") if isinstance(a, _MappedArray) else a
-
-    return tuple({k: one(v) for k, v in a.items()} if isinstance(a, dict) else one(a)
-                 for a in args)
+    return _each_array(args, lambda a: np.load(a.path, mmap_mode="r")
+                       if isinstance(a, _MappedArray) else a)
 
 
 def _write(conn: Connection, message: tuple) -> None:
