@@ -62,9 +62,10 @@ def main() -> None:
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
     args = ap.parse_args()
-    for k in ("LP_NUM_THREADS", "NUMBA_NUM_THREADS", "OMP_NUM_THREADS",
-              "OPENBLAS_NUM_THREADS"):
-        os.environ.setdefault(k, "1")  # as in a worker; read when the libraries load
+    from vhgen.pipeline.local import worker_env
+
+    # one thread per library, as in a worker (read when the libraries load)
+    os.environ.update(worker_env())
     if args.startup:
         from vhgen.config import JobConfig
 

@@ -153,7 +153,7 @@ class LocalPool:
         ours = Connection(a.detach())
         p = subprocess.Popen([sys.executable, "-c", _CHILD, str(b.fileno()),
                               json.dumps(sys.path)], pass_fds=(b.fileno(),),
-                             stdin=subprocess.DEVNULL, env=_worker_env())
+                             stdin=subprocess.DEVNULL, env=worker_env())
         b.close()  # the child's end only: its death then reads as end-of-file here
         wid = self._next_id
         self._next_id += 1
@@ -310,7 +310,7 @@ class LocalPool:
             return "died", w.process.returncode
 
 
-def _worker_env() -> dict[str, str]:
+def worker_env() -> dict[str, str]:
     """The driver's environment, with one thread per worker for the math libraries (the
     workers are the parallelism; what Ray sets for a one-CPU actor) unless the user chose."""
     env = dict(os.environ)
