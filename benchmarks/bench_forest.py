@@ -36,7 +36,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 def complete_forest(trees: int, depth: int, num_classes: int, seed: int):
     """Random complete trees (children of i at 2i+1, 2i+2 within each tree)."""
     from vhgen.forest.features import draw_offsets
-    from vhgen.forest.model import Forest
+    from vhgen.forest.trees import Forest
 
     rng = np.random.default_rng(seed)
     n = 2 ** (depth + 1) - 1
@@ -77,10 +77,10 @@ def mean_path(forest, depth_mm: np.ndarray) -> float:
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
     from vhgen.bench.scenes import human_frame
-    from vhgen.forest.model import Forest, Predictor
+    from vhgen.forest.trees import Forest, Predictor
     from vhgen.mocap.clips import builtin_motion_path
     from vhgen.render.context import create_context
-    from vhgen.sensor.model import SensorConfig
+    from vhgen.sensor.simulator import SensorConfig
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=50)

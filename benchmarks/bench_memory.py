@@ -62,9 +62,9 @@ def actor_rss_mb(root: int) -> dict[int, float]:
         todo += kids.get(pid, [])
         try:
             cmd = (Path("/proc") / str(pid) / "cmdline").read_bytes()
-            # a Ray actor names itself; a local worker runs vhgen.pipeline.local.serve
+            # a Ray actor names itself; a local worker runs vhgen.executor.local.serve
             if not (cmd.startswith(b"ray::FrameWorker")
-                    or b"from vhgen.pipeline.local import serve" in cmd):
+                    or b"from vhgen.executor.local import serve" in cmd):
                 continue
             for line in (Path("/proc") / str(pid) / "status").read_text().splitlines():
                 if line.startswith("VmRSS:"):
@@ -90,13 +90,9 @@ def main() -> None:
     ap.add_argument("--out", help="store path (default: a temporary folder, removed)")
     args = ap.parse_args()
 
-    from vhgen.assets import resolve_asset_dir
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.config import JobConfig
-    from vhgen.mocap.retarget import load_all_maps
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
-    from vhgen.pipeline.poses import load_poses
+    from vhgen.pipeline.job import prepare_job
 
     with tempfile.TemporaryDirectory() as tmp:
         cfg_path = Path(tmp) / "memory.yaml"
@@ -111,13 +107,11 @@ def main() -> None:
         # frames = poses x avatars: cap the poses per motion file so that --avatars
         # avatars give about --frames frames; add avatars if the corpus is too small
         cfg = write(1, 0)
-        base = build_body(resolve_asset_dir(cfg.assets), LabelScheme.load(cfg.labels))
-        rmap = load_all_maps()
-        poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+        poses = prepare_job(cfg).poses
         files = max(1, sum(r["status"] == "ok" for r in poses.report))
         per_motion = math.ceil(args.frames / args.avatars / files)
         cfg = write(1, per_motion)
-        poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+        poses = prepare_job(cfg).poses
         cfg = write(max(args.avatars, math.ceil(args.frames / poses.num_poses)), per_motion)
         total = cfg.avatars.count * poses.num_poses
         out = Path(args.out) if args.out else Path(tmp) / "memory.zarr"
@@ -154,9 +148,9 @@ def main() -> None:
     for n, t, rss in samples:
         print(f"{n:>7} {t:>7.0f}  " + "  ".join(
             f"{rss[p]:>12.1f}" if p in rss else f"{'-':>12}" for p in pids))
-    print(f"\n{summary['frames']} frames in {summary['seconds']:.0f} s "
-          f"({summary['frames'] / summary['render_seconds']:.1f} frames/s while rendering); "
-          f"{summary['retries']} retries")
+    print(f"\n{summary.frames} frames in {summary.seconds:.0f} s "
+          f"({summary.frames / summary.render_seconds:.1f} frames/s while rendering); "
+          f"{summary.retries} retries")
     print(f"{'actor':<10} {'first MB':>9} {'mid MB':>9} {'last MB':>9} {'peak MB':>9} "
           f"{'growth %':>9} {'2nd half %':>10}")
     for p in pids:

@@ -62,12 +62,12 @@ def main() -> None:
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
     args = ap.parse_args()
-    from vhgen.pipeline.local import worker_env
+    from vhgen.executor.local import worker_env
 
     # one thread per library, as in a worker (read when the libraries load)
     os.environ.update(worker_env())
     if args.startup:
-        from vhgen.config import JobConfig
+        from vhgen.job_config import JobConfig
 
         jc = JobConfig.load(args.config, backend=args.backend)
         print_rows(fixed_cost(jc, args.steps), f"vhgen fixed cost: config {jc.name}, "
@@ -75,14 +75,11 @@ def main() -> None:
         return
 
     from vhgen.assets import resolve_asset_dir
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.config import JobConfig
-    from vhgen.mocap.retarget import RetargetMap, load_all_maps
+    from vhgen.camera import sample_camera
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.frames import FrameGenerator
-    from vhgen.pipeline.plan import make_plan
-    from vhgen.pipeline.poses import load_poses
-    from vhgen.sensor.model import SensorModel
+    from vhgen.pipeline.job import prepare_job
+    from vhgen.sensor.simulator import SensorModel
     from vhgen.store.manifest import write_part
     from vhgen.store.zarr_store import create_store, write_shard
 
@@ -91,28 +88,21 @@ def main() -> None:
     rows = []
 
     t = time.perf_counter()
-    body = build_body(asset_dir, LabelScheme.load(cfg.labels))
-    t_body = time.perf_counter() - t
-
-    t = time.perf_counter()
-    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
-    poses = load_poses(cfg.motions, body.rig, rmap, cfg.poses)
+    job = prepare_job(cfg, asset_dir=asset_dir)  # read, retarget, base body, plan
     t_read = time.perf_counter() - t
+    poses, plan = job.poses, job.plan
+    t = time.perf_counter()
+    job.avatar_body(0)
+    t_body = time.perf_counter() - t
     n_src = sum(r["frames"] for r in poses.report)
-    rows.append(("read (per source frame)", n_src, t_read))
-    rows.append(("read (per pose kept)", poses.num_poses, t_read))
+    rows.append(("prepare: read (per source frame)", n_src, t_read))
+    rows.append(("prepare: read (per pose kept)", poses.num_poses, t_read))
     rows.append(("body build (per avatar)", 1, t_body))
 
-    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
-    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
-                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
-                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
-                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
-                          "seeds": plan.seeds}, plan.avatars)
+    gen = FrameGenerator(job)
     n = min(args.frames, plan.num_frames)
     frames = np.arange(n) % plan.num_frames
     from vhgen.body.skinning import bone_matrices
-    from vhgen.pipeline.frames import sample_camera
 
     b = gen.describer.body(0)
     gen.renderer.set_mesh(b.vertices, b.faces, b.joints, b.weights, b.face_labels, b.num_bones)
@@ -172,10 +162,10 @@ def main() -> None:
 
         with tempfile.TemporaryDirectory() as tmp:
             summary = run_job(cfg, Path(tmp) / "e2e.zarr")
-        rows.append((f"end to end, Ray x{cfg.num_workers} (with start-up)", summary["frames"],
-                     summary["seconds"]))
-        rows.append((f"end to end, Ray x{cfg.num_workers} (render phase)", summary["frames"],
-                     summary["render_seconds"]))
+        rows.append((f"end to end, Ray x{cfg.num_workers} (with start-up)", summary.frames,
+                     summary.seconds))
+        rows.append((f"end to end, Ray x{cfg.num_workers} (render phase)", summary.frames,
+                     summary.render_seconds))
         rows += fixed_cost(cfg, args.steps)
 
     print(f"\nvhgen pipeline benchmark: config {cfg.name}, backend {cfg.backend}, "
@@ -197,6 +187,16 @@ def main() -> None:
                   f"frame of a worker, all workers busy): {ratio[5]:.2f}x")
 
 
+def _cycled(job, n: int):
+    """``job`` with its plan's frames repeated to ``n`` frames (same seeds, cycled)."""
+    from dataclasses import replace as rep
+
+    p = job.plan
+    return rep(job, plan=rep(p, num_frames=n, avatar_id=np.resize(p.avatar_id, n),
+                             pose_index=np.resize(p.pose_index, n),
+                             seeds=np.resize(p.seeds, n)))
+
+
 def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[float, ...]:
     """Frames of the scene config timed interleaved with the person-only generator's
     (same process, same machine state): rows for both and their ratios, first for the
@@ -206,32 +206,34 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
     of each plan (cycled when a plan is shorter). Returns (in-memory as configured,
     in-memory one person, end to end as configured, end to end one person, in-memory
     without GL)."""
-    from vhgen.config import JobConfig
-    from vhgen.pipeline.frames import local_generator
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.job import prepare_job
     from vhgen.store.zarr_store import create_store
 
     full = JobConfig.load(scene_path, backend=backend)
     # the same room and props with exactly one person: what the scene itself costs
     one = replace(full, scene=replace(full.scene, people=(1, 1)))
-    gens = [gen] + [local_generator(c, asset_dir, context=gen.ctx)[0] for c in (full, one)]
-    sizes = [len(g.describer.plan["seeds"]) for g in gens]
-    k = min(g.cfg.frames_per_shard for g in gens)
+    k = min(c.frames_per_shard for c in (gen.cfg, full, one))
     shards = max(2, num_frames // k)
     frames = range(k, (shards + 1) * k)  # shard 0: warm-up (avatars, zarr, pyarrow)
-    for g, n in zip(gens, sizes, strict=True):
+    # every plan cycled to the run's length (a plan shorter than the run repeats its frames)
+    jobs = [gen.job] + [prepare_job(c, asset_dir=asset_dir) for c in (full, one)]
+    gens = [FrameGenerator(_cycled(j, (shards + 1) * k), context=gen.ctx) for j in jobs]
+    for g in gens:
         # every avatar built and uploaded first: a per-avatar cost (the "body build" row),
         # not a per-frame one, which a short run would otherwise charge to a few frames
-        for a in range(len(g.describer.avatars)):
+        for a in range(len(g.job.plan.avatars)):
             g.scene._resident([a])
         for f in range(k):
-            g.render_frame(f % n)
+            g.render_frame(f)
     t_mem = [0.0, 0.0, 0.0]
     people = [0, 0]
     t_gl = _time_gl(gens)
     for f in frames:
-        for j, (g, n) in enumerate(zip(gens, sizes, strict=True)):
+        for j, g in enumerate(gens):
             t = time.perf_counter()
-            out = g.render_frame(f % n)
+            out = g.render_frame(f)
             t_mem[j] += time.perf_counter() - t
             people[0] += out.record.num_people if j == 1 else 0
     gl = [t_gl[id(g)] for g in gens]
@@ -256,15 +258,12 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
                          frames_per_shard=k, compression_level=c.compression_level,
                          attrs={}, raw11=c.sensor.encoding.raw11)
         for sh in range(shards + 1):
-            for j, (g, n) in enumerate(zip(gens, sizes, strict=True)):
-                if sh * k + k > n:  # a plan shorter than the run: its frames cycle
-                    g.describer.plan = {key: np.resize(v, (shards + 1) * k)
-                                        for key, v in g.describer.plan.items()}
+            for j, g in enumerate(gens):
                 t = time.perf_counter()
                 g.run_task(stores[j], sh, sh * k, sh * k + k)
                 if sh > 0:  # shard 0: warm-up
                     t_e2e[j] += time.perf_counter() - t
-    for g in gens[1:]:
+    for g in gens:
         g.close()
     rows.append(("end to end, person only (shards)", m, t_e2e[0]))
     rows.append((f"end to end, {label} (shards)", m, t_e2e[1]))
@@ -279,7 +278,7 @@ def _scene_job_rows(cfg, scene_path, backend, num_frames, rows) -> float:
     enough of them), twice, interleaved: rows of the steady seconds per frame of one
     worker (the median over its shards: render, sensor and write, with every worker of
     the job busy) and their ratio, scene over person-only."""
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     full = JobConfig.load(scene_path, backend=backend)
@@ -291,8 +290,8 @@ def _scene_job_rows(cfg, scene_path, backend, num_frames, rows) -> float:
                 c = replace(c, poses=replace(c.poses, frame_step=min(c.poses.frame_step, 2)))
                 s = run_job(c, Path(tmp) / f"job{rep}{j}.zarr", max_frames=num_frames,
                             executor="local", progress=False)
-                steady[j] += s["steady_seconds_per_frame"] * s["frames"]
-                frames[j] += s["frames"]
+                steady[j] += s.steady_seconds_per_frame * s.frames
+                frames[j] += s.frames
     rows.append((f"job, person only, per worker (x{cfg.num_workers})", frames[0], steady[0]))
     rows.append((f"job, {full.name}, per worker (x{full.num_workers})", frames[1], steady[1]))
     return (steady[1] / frames[1]) / (steady[0] / frames[0])
@@ -331,13 +330,12 @@ def fixed_cost(cfg, steps, executors=("local", "ray")) -> list[tuple[str, int, f
             with tempfile.TemporaryDirectory() as tmp:
                 t = time.perf_counter()
                 summary = run_job(c, Path(tmp) / "fixed.zarr", **kw)
-                runs.append((summary["frames"], time.perf_counter() - t))
-                if "fixed_seconds" in summary:  # the in-run estimate (newer versions)
-                    rows.append((f"{ex}: fixed cost in-run, {summary['frames']} frames", 1,
-                                 summary["fixed_seconds"]))
-                    for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
-                        if summary.get(k):
-                            rows.append((f"  {k.replace('_seconds', '')}", 1, summary[k]))
+                runs.append((summary.frames, time.perf_counter() - t))
+                rows.append((f"{ex}: fixed cost in-run, {summary.frames} frames", 1,
+                             summary.fixed_seconds))
+                for k in ("ray_init_seconds", "first_shard_seconds", "tail_seconds"):
+                    if getattr(summary, k):
+                        rows.append((f"  {k.replace('_seconds', '')}", 1, getattr(summary, k)))
         (n1, t1), (n2, t2) = runs
         per_frame = (t2 - t1) / (n2 - n1)
         rows += [(f"{ex}: job, {n1} frames ({where})", n1, t1),

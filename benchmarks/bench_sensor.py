@@ -63,7 +63,7 @@ def main() -> None:
     from vhgen.mocap.clips import builtin_motion_path
     from vhgen.render.context import create_context
     from vhgen.sensor.kernels import correlation_window, dots_from_pattern
-    from vhgen.sensor.model import PATTERN_PAD, SensorConfig, SensorModel
+    from vhgen.sensor.simulator import PATTERN_PAD, SensorConfig, SensorModel
     from vhgen.yamlio import configs_dir
 
     ap = argparse.ArgumentParser()

@@ -25,8 +25,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
+    from vhgen.body.avatar import build_body
     from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
     from vhgen.body.shape import ShapeSampler
     from vhgen.body.skinning import bone_matrices, skin_vertices, skin_vertices_dqs
     from vhgen.mocap.bvh import read_bvh

@@ -48,9 +48,9 @@ TEST_SENSORS = ("kinect_v1_full", "ideal")
 def generate(config: str, sensor: str, step: int, avatars: int, out: Path, backend: str,
              workers: int) -> str:
     """Frames of ``config`` through ``sensor`` (reused if the store is complete)."""
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
-    from vhgen.sensor.model import SensorConfig
+    from vhgen.sensor.simulator import SensorConfig
 
     if (out / "manifest.parquet").is_file():
         return str(out)
@@ -60,7 +60,7 @@ def generate(config: str, sensor: str, step: int, avatars: int, out: Path, backe
                               poses=dataclasses.replace(cfg.poses, frame_step=step),
                               avatars=dataclasses.replace(cfg.avatars, count=avatars))
     s = run_job(cfg, out, overwrite=True)
-    print(f"generated {s['frames']} frames -> {out} ({s['seconds']:.0f} s)", flush=True)
+    print(f"generated {s.frames} frames -> {out} ({s.seconds:.0f} s)", flush=True)
     return str(out)
 
 
@@ -154,9 +154,9 @@ def main() -> None:
     ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
     ap.add_argument("--workers", type=int, default=2, help="generation workers")
     args = ap.parse_args()
-    from vhgen.forest.driver import train_forest
-    from vhgen.forest.model import first_trees, truncate
+    from vhgen.forest.from_stores import train_forest
     from vhgen.forest.train import TrainParams
+    from vhgen.forest.trees import first_trees, truncate
 
     t_start = time.perf_counter()
     plan = QUICK if args.quick else FULL

@@ -35,7 +35,7 @@ def shotton():
 
 @pytest.fixture(scope="session")
 def body(asset_dir, shotton):
-    from vhgen.body.model import build_body
+    from vhgen.body.avatar import build_body
 
     return build_body(asset_dir, shotton)
 
@@ -76,7 +76,7 @@ num_workers: 2
 def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
     """A real store made by the Ray driver from two CMU clips: 8 frames in shards of 3
     (the last one short), arrays depth/labels/raw. Read-only: copy it before damaging it."""
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     tmp = tmp_path_factory.mktemp("small_store")

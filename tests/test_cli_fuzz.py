@@ -218,12 +218,12 @@ def test_bad_scene_file_names_the_field(tmp_path, capsys):
 
 def test_internal_errors_keep_their_traceback(monkeypatch):
     """A bug is not a user error: it is not turned into one line."""
-    import vhgen.config
+    import vhgen.job_config
 
     def bug(*a, **kw):
         raise ZeroDivisionError("a bug")
 
-    monkeypatch.setattr(vhgen.config.JobConfig, "load", bug)
+    monkeypatch.setattr(vhgen.job_config.JobConfig, "load", bug)
     with pytest.raises(ZeroDivisionError):
         cli.main(["generate", "default"])
 

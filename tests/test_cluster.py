@@ -108,7 +108,7 @@ def test_rayjob_manifest_matches_the_kuberay_schema():
 def test_rayjob_entrypoint_runs_this_repository():
     """The entrypoint's script and config exist in the image (the repository at
     /opt/vhgen, see Dockerfile) and the config asks Ray for GPUs per actor."""
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
 
     spec = _docs()["RayJob"]["spec"]
     argv = shlex.split(spec["entrypoint"])

@@ -1,7 +1,7 @@
 import pytest
 
-from vhgen.config import JobConfig, SensorConfig
 from vhgen.errors import ConfigError
+from vhgen.job_config import JobConfig, SensorConfig
 from vhgen.yamlio import configs_dir
 
 

@@ -1,12 +1,17 @@
 """The package graph points down: a module imports only its own layer and the ones below.
 
 Every import under vhgen/ counts, including those inside functions and under
-``TYPE_CHECKING``. The order is written once, in LAYERS (lowest first): extend it there.
+``TYPE_CHECKING``, and ``from vhgen import X`` (the submodule X, or else the package's
+``__init__``, which is in the top layer). Packages of one layer may import each other, but
+never in a circle. The order is written once, in LAYERS (lowest first), and the modules
+allowed to import a backend once, in BACKENDS; ``docs/architecture.md`` states both and a
+test checks that it says the same.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -18,11 +23,11 @@ ROOT = Path(vhgen.__file__).parent
 # Lowest first. A module belongs to the first entry that is a prefix of its dotted name
 # (without the leading "vhgen."); modules in the same layer may import each other.
 LAYERS: list[tuple[str, ...]] = [
-    ("errors", "yamlio"),
-    ("rotations", "camera", "assets"),
+    ("errors", "yamlio", "version"),
+    ("rotations", "camera", "assets", "executor"),
     ("mocap", "body", "sensor"),
     ("scene",),
-    ("config", "cliargs"),
+    ("job_config", "cliargs"),
     ("store",),
     ("render", "preview"),
     ("pipeline",),
@@ -33,8 +38,9 @@ LAYERS: list[tuple[str, ...]] = [
 # Backends: which modules may import them at all (prefix match on the dotted name).
 # vhgen.dataset.to_ray is the one reader that is a Ray entry point (Ray Data), imported
 # inside that function only; `import vhgen` staying Ray-free is checked below.
-BACKENDS = {"ray": ("pipeline.driver", "forest.driver", "dataset"), "moderngl": ("render",),
+BACKENDS = {"ray": ("executor.raypool", "dataset"), "moderngl": ("render",),
             "glcontext": ("render",)}
+ARCHITECTURE = ROOT.parent / "docs" / "architecture.md"
 
 
 def _layer(mod: str) -> int:
@@ -70,10 +76,15 @@ def _imports(path: Path, mod: str) -> list[tuple[int, str]]:
                 name = f"{base}.{node.module}" if node.module else base
             else:
                 name = node.module or ""
-            out.append((node.lineno, name))
-            # `from vhgen.sensor import effects` imports the submodule
-            out += [(node.lineno, f"{name}.{a.name}") for a in node.names
+            # `from vhgen.sensor import effects` imports the submodule; `from vhgen import
+            # __version__` imports the package's __init__ (the top layer)
+            subs = [f"{name}.{a.name}" for a in node.names
                     if name.startswith("vhgen") and _is_module(f"{name}.{a.name}")]
+            if name == "vhgen" and len(subs) < len(node.names):
+                out.append((node.lineno, "vhgen.__init__"))
+            elif name != "vhgen":
+                out.append((node.lineno, name))
+            out += [(node.lineno, sub) for sub in subs]
     return out
 
 
@@ -103,6 +114,72 @@ def test_backends_only_where_allowed():
                                            for a in allowed):
             bad.append(f"{path.relative_to(ROOT.parent)}:{line}: vhgen.{mod} imports {top}")
     assert not bad, "backend imports outside their modules:\n" + "\n".join(bad)
+
+
+def _package_graph() -> dict[str, set[str]]:
+    """Top-level package (or module) -> the other top-level ones it imports."""
+    graph: dict[str, set[str]] = {}
+    for _, _, mod, name in _edges():
+        if name.startswith("vhgen."):
+            a, b = mod.split(".")[0], name.split(".")[1]
+            if a != b:
+                graph.setdefault(a, set()).add(b)
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_package_cycles():
+    """Packages of the same layer may import each other, but not in a circle."""
+    cycles = _cycles(_package_graph())
+    assert not cycles, f"packages importing each other in a circle: {cycles}"
+
+
+def test_cycle_finder_sees_a_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_architecture_doc_states_the_layers_and_backends():
+    """docs/architecture.md says what LAYERS and BACKENDS say."""
+    text = ARCHITECTURE.read_text()
+    order = " < ".join("`" + " ".join(names) + "`" for names in LAYERS)
+    assert order in " ".join(text.split()), f"architecture.md must state the layers: {order}"
+    for backend, mods in (("Ray", BACKENDS["ray"]), ("GL", BACKENDS["moderngl"])):
+        line = next((ln for ln in text.splitlines() if ln.startswith(f"- {backend} only in")),
+                    None)
+        assert line is not None, f"architecture.md has no '- {backend} only in' line"
+        assert sorted(re.findall(r"`vhgen\.([\w.]+)`", line)) == sorted(mods), line
 
 
 def test_every_module_has_a_layer():

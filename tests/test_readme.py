@@ -27,7 +27,7 @@ def test_blocks_found():
 
 
 def test_readme_python_examples_run(tmp_path, asset_dir):
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     blocks = python_blocks((REPO / "README.md").read_text())

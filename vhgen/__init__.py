@@ -4,12 +4,9 @@ The public API below is pure NumPy; GL (``vhgen.render``) and Ray (``vhgen.pipel
 are imported only when used, so ``import vhgen`` imports neither moderngl nor ray.
 """
 
-__version__ = "0.1.0"
-
 from vhgen.assets import fetch_assets, resolve_asset_dir
 from vhgen.body import Body, LabelScheme, bone_matrices, build_body, skin_vertices
 from vhgen.camera import Intrinsics, backproject, look_at, project
-from vhgen.config import JobConfig, SensorConfig
 from vhgen.errors import (
     AssetError,
     BVHError,
@@ -19,8 +16,10 @@ from vhgen.errors import (
     StoreError,
     VhgenError,
 )
+from vhgen.job_config import JobConfig, SensorConfig
 from vhgen.mocap import Motion, parse_bvh, read_bvh
 from vhgen.mocap.retarget import RetargetMap, build_retargeter
+from vhgen.version import __version__
 
 __all__ = [
     "AssetError", "BVHError", "Body", "ConfigError", "Intrinsics", "JobConfig", "LabelScheme",

@@ -1,8 +1,11 @@
-"""Pinhole camera math in NumPy: intrinsics, extrinsics, projection, back-projection.
+"""Camera math in NumPy, in one place: intrinsics, projection and back-projection,
+extrinsics (look-at, a mounted camera, the projector beside it) and the per-frame camera
+placement a job samples.
 
 Conventions: camera frame as OpenCV (x right, y down, z forward), world frame Y up.
 Pixel (u, v) = (column, row) has its centre at integer coordinates; image row 0 is the
-top row. Depth ``z`` is planar depth along the optical axis (not range), metres.
+top row. Depth ``z`` is planar depth along the optical axis (not range), metres. A point
+on or behind the camera plane (z <= 0) has no projection: NaN.
 """
 
 from __future__ import annotations
@@ -49,9 +52,10 @@ class Intrinsics:
 
 
 def project(intr: Intrinsics, points_cam: np.ndarray) -> np.ndarray:
-    """Camera-frame points (..., 3) -> pixel coordinates (..., 2) float64 (u, v)."""
+    """Camera-frame points (..., 3) -> pixel coordinates (..., 2) float64 (u, v), pixel
+    centres at integers; a point with z <= 0 (on or behind the camera) gives NaN."""
     p = np.asarray(points_cam, np.float64)
-    z = p[..., 2]
+    z = np.where(p[..., 2] > 0, p[..., 2], np.nan)
     return np.stack([intr.fx * p[..., 0] / z + intr.cx, intr.fy * p[..., 1] / z + intr.cy], -1)
 
 
@@ -89,3 +93,89 @@ def look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarr
     out[:3, :3] = r
     out[:3, 3] = -r @ eye
     return out
+
+
+def mounted_camera(eye: np.ndarray, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """world_to_camera (4, 4) of a camera at ``eye`` turned towards the world's y axis,
+    tilted down by ``pitch_deg`` and rolled by ``roll_deg`` about its optical axis."""
+    level = np.array([-eye[0], 0.0, -eye[2]])
+    level /= np.linalg.norm(level)
+    p = np.deg2rad(pitch_deg)
+    forward = np.cos(p) * level + np.array([0.0, -np.sin(p), 0.0])
+    w2c = look_at(eye, eye + forward)
+    c, s = np.cos(np.deg2rad(roll_deg)), np.sin(np.deg2rad(roll_deg))
+    rz = np.eye(4)
+    rz[:2, :2] = [[c, -s], [s, c]]
+    return rz @ w2c
+
+
+def pitch_roll_deg(world_to_camera: np.ndarray) -> tuple[float, float]:
+    """The pitch (degrees down from level) and roll (about the optical axis) of a camera
+    in a Y-up world: the inverse of :func:`mounted_camera`'s tilt."""
+    w2c = np.asarray(world_to_camera, np.float64)
+    return (float(np.degrees(np.arcsin(np.clip(-w2c[2, 1], -1, 1)))),
+            float(np.degrees(np.arctan2(w2c[0, 1], -w2c[1, 1]))))
+
+
+def world_to_projector(world_to_camera: np.ndarray, baseline_m: float) -> np.ndarray:
+    """world_to_projector (4, 4) of a structured-light sensor's projector, at
+    +``baseline_m`` along the camera's x axis (a rectified rig)."""
+    w2p = np.array(world_to_camera, dtype=np.float64)
+    w2p[0, 3] -= baseline_m
+    return w2p
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Camera placement, sampled per frame: the camera circles the subject's root."""
+
+    distance_m: tuple[float, float] = (2.2, 3.2)
+    height_m: tuple[float, float] = (0.9, 1.3)
+    yaw_deg: tuple[float, float] = (-60.0, 60.0)  # 0 = camera in front of the subject
+    look_at_height_m: tuple[float, float] = (0.85, 1.0)
+    near_m: float = 0.1
+    far_m: float = 20.0
+    # a mounted camera (set by pitch_deg or a preset): level, turned towards the subject,
+    # tilted down by pitch (degrees, + = towards the floor) and rolled about its axis;
+    # look_at_height_m is then unused. None = the camera looks at the subject (above).
+    pitch_deg: tuple[float, float] | None = None
+    roll_deg: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class CameraPose:
+    """world_to_camera (4, 4) float64 (OpenCV axes: x right, y down, z forward) and the
+    sampled mount: yaw about the subject (deg), distance and height (m), and for a
+    mounted camera its pitch and roll (deg; None when it looks at the subject)."""
+
+    world_to_camera: np.ndarray
+    yaw_deg: float
+    distance_m: float
+    height_m: float
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+
+    @property
+    def eye(self) -> np.ndarray:
+        """(3,) float64 the camera centre in the world."""
+        w2c = self.world_to_camera
+        return -w2c[:3, :3].T @ w2c[:3, 3]
+
+
+def sample_camera(rng: np.random.Generator, cfg: CameraConfig) -> CameraPose:
+    """Camera placement around the subject's root (the first draws of the frame's
+    stream, in this order: yaw, distance, height, then look-at height; or, for a mounted
+    camera (``pitch_deg`` set), pitch and roll)."""
+    yaw = rng.uniform(*cfg.yaw_deg)
+    dist = rng.uniform(*cfg.distance_m)
+    height = rng.uniform(*cfg.height_m)
+    a = np.deg2rad(yaw)
+    eye = np.array([dist * np.sin(a), height, dist * np.cos(a)])
+    if cfg.pitch_deg is None:
+        target_h = rng.uniform(*cfg.look_at_height_m)
+        w2c = look_at(eye, np.array([0.0, target_h, 0.0]))
+        return CameraPose(w2c, float(yaw), float(dist), float(height))
+    pitch = float(rng.uniform(*cfg.pitch_deg))
+    roll = float(rng.uniform(*cfg.roll_deg))
+    w2c = mounted_camera(eye, pitch, roll)
+    return CameraPose(w2c, float(yaw), float(dist), float(height), pitch, roll)

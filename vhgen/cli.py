@@ -79,7 +79,7 @@ def _add_assets(sub: _Sub) -> None:
 # -- generate ----------------------------------------------------------------------------
 
 def _cmd_generate(args: argparse.Namespace) -> int:
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     cfg = JobConfig.load(args.config, num_workers=args.num_workers, backend=args.backend)
@@ -87,10 +87,10 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     summary = run_job(cfg, out, ray_address=args.address, resume=args.resume,
                       overwrite=args.overwrite, max_frames=args.max_frames,
                       progress=not args.quiet, executor=args.executor)
-    for s in summary["skipped"]:
+    for s in summary.skipped:
         print(f"skipped {s['file']}: {s['error']}", file=sys.stderr)
-    print(f"wrote {summary['frames']} frames ({summary['poses']} poses) to {summary['store']} "
-          f"in {summary['seconds']:.1f} s; GL renderer: {', '.join(summary['renderers'])}")
+    print(f"wrote {summary.frames} frames ({summary.poses} poses) to {summary.store} "
+          f"in {summary.seconds:.1f} s; GL renderer: {', '.join(summary.renderers)}")
     return 0
 
 
@@ -247,9 +247,9 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
     import numpy as np
 
     from vhgen.assets import resolve_asset_dir
+    from vhgen.body.avatar import build_body
     from vhgen.body.export import export_mesh, posed_mesh
     from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
     from vhgen.body.shape import Shape, age_from_years
 
     values = dict(args.shape or [])

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.errors import StoreError
-from vhgen.store.zarr_store import MANIFEST_FILE, open_store
+from vhgen.store.zarr_store import MANIFEST_FILE, open_store, read_frames
 
 # contract arrays first, in this order; other (N, ...) arrays of the group follow by name
 CONTRACT_ORDER = ("depth", "labels", "raw")
@@ -54,27 +54,6 @@ def _row_dict(table, i: int) -> dict[str, Any]:
             dtype = np.float32 if name == "joints_cam" else np.float64
             row[name] = np.asarray(row[name], dtype).reshape(shape)
     return row
-
-
-def read_frames(root: Any, names: Sequence[str], frames: np.ndarray,
-                frames_per_shard: int) -> dict[str, np.ndarray]:
-    """Read ``frames`` (sorted or not) of each array; one contiguous slice per shard touched.
-
-    Returns name -> (len(frames), ...) arrays in the order of ``frames``.
-    """
-    frames = np.asarray(frames, np.int64)
-    out: dict[str, np.ndarray] = {}
-    shards = frames // frames_per_shard
-    for name in names:
-        arr = root[name]
-        res = np.empty((len(frames), *arr.shape[1:]), arr.dtype)
-        for s in np.unique(shards):
-            sel = np.nonzero(shards == s)[0]
-            lo, hi = int(frames[sel].min()), int(frames[sel].max())
-            block = arr[lo:hi + 1]
-            res[sel] = block[frames[sel] - lo]
-        out[name] = res
-    return out
 
 
 class ShardSampler:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vhgen.bench.scenes import suite
-from vhgen.sensor.config import SensorConfig
+from vhgen.sensor.sensor_config import SensorConfig
 
 F, B = 571.26, 0.075
 

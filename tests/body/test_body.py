@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from vhgen.body.avatar import build_body
 from vhgen.body.mesh import truncate_weights
-from vhgen.body.model import build_body
 from vhgen.body.skinning import bone_matrices, skin_vertices
 from vhgen.errors import AssetError, ConfigError
 

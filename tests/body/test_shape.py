@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from vhgen.body.model import build_body
+from vhgen.body.avatar import build_body
 from vhgen.body.shape import (
     Shape,
     ShapeSampler,
@@ -124,7 +124,7 @@ def test_other_label_schemes_cover_every_part(asset_dir, scheme):
 def test_avatar_rebuilt_from_manifest_params(asset_dir, shotton):
     import json
 
-    from vhgen.config import AvatarConfig
+    from vhgen.job_config import AvatarConfig
     from vhgen.pipeline.plan import avatar_params
 
     p = avatar_params(7, 3, AvatarConfig(count=5, tights_probability=1.0))

@@ -5,11 +5,12 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from tests.forest.conftest import two_boxes, write_store
 from vhgen.cli import main
-from vhgen.forest.model import Forest
+from vhgen.forest.trees import Forest
 
 SMALL = ["--trees", "2", "--depth", "6", "--pixels-per-image", "200", "--features", "40",
          "--thresholds", "8", "--max-offset", "40", "--min-samples", "4", "--quiet"]
@@ -105,15 +106,17 @@ def test_cli_errors(tmp_path, capsys, boxes_store):
                    match="label scheme mismatch")
 
 
-def test_ray_same_forest_whatever_workers(boxes_store):
-    from vhgen.forest.driver import train_forest
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+def test_same_forest_whatever_workers(boxes_store, executor):
+    """In this process, in worker processes or on Ray actors: the same forest."""
+    from vhgen.forest.from_stores import train_forest
     from vhgen.forest.train import TrainParams
 
     p = TrainParams(trees=2, depth=6, pixels_per_image=200, features=40, thresholds=8,
                     seed=3, max_offset=40, min_samples=4)
     ref = train_forest([boxes_store], p)
     for w in (1, 2):
-        f = train_forest([boxes_store], p, workers=w)
+        f = train_forest([boxes_store], p, workers=w, executor=executor)
         for k in ("offsets", "thresh", "left", "depth", "counts", "roots"):
             np.testing.assert_array_equal(getattr(f, k), getattr(ref, k))
         assert f.meta["workers"] == w

@@ -8,10 +8,11 @@ import pytest
 from tests.forest.conftest import two_boxes
 from tests.forest.test_features import reference_feature
 from vhgen.errors import ForestError
+from vhgen.executor import InlinePool
 from vhgen.forest.features import BACKGROUND_MM, draw_offsets, prepare_depth
 from vhgen.forest.kernel import pack_forest, probe_indices
-from vhgen.forest.model import Forest, Predictor, truncate
-from vhgen.forest.train import ImageShard, LocalPool, TrainParams, grow_forest
+from vhgen.forest.train import ImageShard, TrainParams, grow_forest
+from vhgen.forest.trees import Forest, Predictor, truncate
 
 
 def reference_leaves(forest: Forest, depth: np.ndarray) -> np.ndarray:
@@ -141,8 +142,8 @@ def test_trained_forest_with_early_leaves_and_a_stump():
     d = np.where(d > 0, d + np.random.default_rng(6).integers(0, 400, d.shape), 0)
     p = TrainParams(trees=3, depth=10, pixels_per_image=300, features=40, thresholds=10,
                     seed=4, max_offset=60, min_samples=3)
-    forest = grow_forest(LocalPool([ImageShard(d.astype(np.uint16), lab, range(20), p)]), 3,
-                         p, {})
+    shard = ImageShard(d.astype(np.uint16), lab, range(20), p)
+    forest = grow_forest(InlinePool.holding([shard]), 3, p, {})
     leaf_depths = forest.depth[forest.left < 0]
     assert leaf_depths.min() < leaf_depths.max()  # paths of different lengths
     # a fourth tree that is a single leaf (no split at all)

@@ -7,7 +7,7 @@ import pytest
 
 from tests.forest.conftest import two_boxes
 from vhgen.errors import ForestError
-from vhgen.forest.model import Predictor
+from vhgen.executor import InlinePool
 from vhgen.forest.pcl import (
     PCL_BACKGROUND,
     PCL_PART_NAMES,
@@ -18,7 +18,8 @@ from vhgen.forest.pcl import (
     read_pcl_tree,
     to_pcl_label,
 )
-from vhgen.forest.train import ImageShard, LocalPool, TrainParams, grow_forest
+from vhgen.forest.train import ImageShard, TrainParams, grow_forest
+from vhgen.forest.trees import Predictor
 
 
 def pcl25_forest(min_samples: int):
@@ -30,7 +31,7 @@ def pcl25_forest(min_samples: int):
     d = np.where(d > 0, d + rng.integers(0, 300, d.shape), 0).astype(np.uint16)
     p = TrainParams(trees=3, depth=7, pixels_per_image=250, features=40, thresholds=10,
                     seed=2, max_offset=60, min_samples=min_samples)
-    f = grow_forest(LocalPool([ImageShard(d, lab, range(16), p)]), 26, p,
+    f = grow_forest(InlinePool.holding([ImageShard(d, lab, range(16), p)]), 26, p,
                     {"label_scheme": "pcl25", "label_names": list(PCL_PART_NAMES), "fx": 525.0})
     return f, d
 

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from tests.forest.test_kernel import reference_predict
-from vhgen.config import JobConfig
 from vhgen.forest.data import read_frames, select_frames, store_info
-from vhgen.forest.driver import train_forest
 from vhgen.forest.evaluate import evaluate
-from vhgen.forest.model import Predictor
+from vhgen.forest.from_stores import train_forest
 from vhgen.forest.pcl import export_pcl, pcl_tree_labels, read_pcl_tree, to_pcl_label
 from vhgen.forest.train import TrainParams
+from vhgen.forest.trees import Predictor
+from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
 
 pytestmark = pytest.mark.slow

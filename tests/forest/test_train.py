@@ -7,8 +7,9 @@ import pytest
 
 from tests.forest.conftest import two_boxes
 from vhgen.errors import ForestError
-from vhgen.forest.model import Forest, Predictor
-from vhgen.forest.train import ImageShard, LocalPool, TrainParams, grow_forest, sample_pixels
+from vhgen.executor import InlinePool
+from vhgen.forest.train import ImageShard, TrainParams, grow_forest, sample_pixels
+from vhgen.forest.trees import Forest, Predictor
 
 PARAMS = TrainParams(trees=2, depth=8, pixels_per_image=300, features=60, thresholds=12,
                      seed=5, max_offset=40, min_samples=4)
@@ -19,7 +20,7 @@ def train(depth, labels, splits=(None,), params=PARAMS) -> Forest:
     bounds = [0, *[s for s in splits if s is not None], len(depth)]
     shards = [ImageShard(depth[a:b], labels[a:b], range(a, b), params)
               for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    return grow_forest(LocalPool(shards), 3, params, {})
+    return grow_forest(InlinePool.holding(shards), 3, params, {})
 
 
 def test_two_boxes_learned_perfectly():

@@ -310,8 +310,8 @@ def test_positions_on_every_joint_and_mixed_euler_orders_as_text(body, shared_mo
 def test_scene_config_takes_a_written_map_relative_to_itself(tmp_path, body):
     """`retarget: my.map.yaml` in a scene config, as --explain wrote it, drives load_poses
     (the `vhgen generate` path) exactly like the automatic mapping."""
-    from vhgen.config import JobConfig
     from vhgen.errors import ConfigError
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.poses import load_poses
 
     src = DIALECTS / "AV_8Walk_Meredith_HVHA_Rep1.bvh"

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vhgen.config import JobConfig
+from tests.pipeline.faulty_worker import run_faulty
+from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
 
 pytestmark = pytest.mark.slow
@@ -55,10 +56,10 @@ def test_contract(smoke, shared_mocap):
 
     tmp, cfg, summary = smoke
     store = tmp / "two.zarr"
-    assert summary["frames"] == 10 and summary["poses"] == 5
-    assert [s["file"].split("/")[-1] for s in summary["skipped"]] == ["broken.bvh"]
-    assert "data rows" in summary["skipped"][0]["error"]
-    assert all("llvmpipe" in r for r in summary["renderers"])
+    assert summary.frames == 10 and summary.poses == 5
+    assert [s["file"].split("/")[-1] for s in summary.skipped] == ["broken.bvh"]
+    assert "data rows" in summary.skipped[0]["error"]
+    assert all("llvmpipe" in r for r in summary.renderers)
     g = zarr.open_group(str(store), mode="r")
     depth, labels = g["depth"], g["labels"]
     assert depth.shape == (10, 480, 640) and depth.dtype == np.uint16
@@ -74,7 +75,7 @@ def test_contract(smoke, shared_mocap):
                                           "ref_error_deg", "ref_error_bone", "notes"]
     assert motions["02_01.bvh"]["mapping"] == "map" and motions["02_01.bvh"]["confidence"] == 1
     assert motions["broken.bvh"]["status"] == "skipped"
-    assert sum(m["poses_kept"] for m in motions.values()) == summary["poses"]
+    assert sum(m["poses_kept"] for m in motions.values()) == summary.poses
     d = depth[:]
     lab = labels[:]
     # scene arrays, read with plain zarr: one person, no geometry in this config
@@ -123,9 +124,9 @@ def test_same_bytes_with_one_worker(smoke, shared_mocap):
     import pyarrow.parquet as pq
 
     tmp, _, summary = smoke
-    assert summary["executor"] == "local"  # auto, no cluster address: local processes
+    assert summary.executor == "local"  # auto, no cluster address: local processes
     cfg1 = _config(tmp, shared_mocap, num_workers=1)
-    assert run_job(cfg1, tmp / "one.zarr", executor="ray")["executor"] == "ray"
+    assert run_job(cfg1, tmp / "one.zarr", executor="ray").executor == "ray"
     a, b = _store_files(tmp / "two.zarr"), _store_files(tmp / "one.zarr")
     assert a.keys() == b.keys() and len(a) >= 6
     assert all(a[k] == b[k] for k in a)
@@ -140,8 +141,8 @@ def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap, executor)
 
     tmp, cfg, _ = smoke
     out = tmp / f"faulty-{executor}.zarr"
-    summary = run_job(cfg, out, faults={"die_once": {0, 2}}, executor=executor)
-    assert summary["frames"] == 10 and summary["retries"] == 2
+    summary = run_faulty(cfg, out, {"die_once": {0, 2}}, executor=executor)
+    assert summary.frames == 10 and summary.retries == 2
     a, b = _store_files(tmp / "two.zarr"), _store_files(out)
     assert all(a[k] == b[k] for k in a)
     man = pq.read_table(out / "manifest.parquet")
@@ -177,7 +178,7 @@ def test_generate_from_pose_table(tmp_path, shared_mocap, asset_dir):
                         "output: {frames_per_shard: 8}\nrender: {backend: osmesa}\n"
                         "num_workers: 2\n")
     summary = run_job(JobConfig.load(cfg_path), tmp_path / "t.zarr")
-    assert summary["frames"] == table.num_poses
+    assert summary.frames == table.num_poses
     man = pq.read_table(tmp_path / "t.zarr" / "manifest.parquet")
     assert man.column("motion_file").to_pylist() == table.source_file
     assert man.column("source_frame").to_pylist() == table.source_frame.tolist()
@@ -199,7 +200,7 @@ def test_resume_finishes_an_interrupted_run(smoke, shared_mocap):
     (cut / "depth" / "c" / "stray.partial").parent.mkdir(parents=True, exist_ok=True)
     (cut / "depth" / "c" / "stray.partial").write_bytes(b"junk")
     summary = run_job(cfg, cut, resume=True)
-    assert summary["written"] == 1  # only the incomplete shard was redone
+    assert summary.written == 1  # only the incomplete shard was redone
     assert not list(cut.rglob("*.partial"))
     a, b = _store_files(tmp / "two.zarr"), _store_files(cut)
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
@@ -309,4 +310,4 @@ def test_scene_job_contract_and_same_bytes_with_one_worker(tmp_path, shared_moca
     assert not np.array_equal(plain[:, 320:640], marked[:, 320:640])
     # objects that did not fit are counted, in the summary and per frame
     for k in ("people", "props"):
-        assert summary["dropped"][k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)
+        assert summary.dropped[k] == sum(json.loads(r["scene"])["dropped"][k] for r in rows)

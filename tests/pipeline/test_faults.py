@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.pipeline.faulty_worker import run_faulty
 from vhgen.cli import main
-from vhgen.config import JobConfig
 from vhgen.errors import StoreError
+from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
 
 pytestmark = pytest.mark.slow
@@ -71,7 +72,7 @@ def test_injected_disk_full_then_resume(tmp_path, executor):
     cfg = _cfg(tmp_path)
     store = tmp_path / "inj.zarr"
     with pytest.raises(StoreError) as ei:
-        run_job(cfg, store, max_frames=16, faults={"write_error": (errno.ENOSPC, {1})},
+        run_faulty(cfg, store, {"write_error": (errno.ENOSPC, {1})}, max_frames=16,
                 executor=executor)
     msg = str(ei.value)
     assert "\n" not in msg and "shard 1" in msg and "No space left on device" in msg
@@ -81,7 +82,7 @@ def test_injected_disk_full_then_resume(tmp_path, executor):
     assert "part-000000.parquet" in done  # the shard in flight with the failing one finished
     before = _shard_bytes(store, 0)
     summary = run_job(cfg, store, max_frames=16, resume=True)
-    assert summary["written"] == 4 - len(done)  # only what was missing
+    assert summary.written == 4 - len(done)  # only what was missing
     assert _shard_bytes(store, 0) == before  # finished shards untouched
     import pyarrow.parquet as pq
 
@@ -150,7 +151,8 @@ def test_worker_setup_failure_is_one_line(tmp_path, capsys, executor):
     from vhgen.errors import VhgenError
 
     with pytest.raises(VhgenError) as ei:
-        run_job(_cfg(tmp_path), tmp_path / "s.zarr", max_frames=4, executor=executor,
-                faults={"setup_error": "cannot create an egl OpenGL context: no device"})
+        run_faulty(_cfg(tmp_path), tmp_path / "s.zarr",
+                   {"setup_error": "cannot create an egl OpenGL context: no device"},
+                   max_frames=4, executor=executor)
     msg = str(ei.value)
     assert "\n" not in msg and "cannot create an egl OpenGL context" in msg

@@ -10,7 +10,7 @@ import pytest
 
 from vhgen.body.skinning import skin_vertices
 from vhgen.camera import backproject
-from vhgen.config import JobConfig
+from vhgen.job_config import JobConfig
 from vhgen.scene.geometry import FLOOR, PERSON, WALL
 
 JOB = """
@@ -26,22 +26,23 @@ render: {{backend: osmesa}}
 
 
 def _generator(tmp: Path, sensor: str, scene: str = ""):
-    from vhgen.pipeline.frames import local_generator
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.job import prepare_job
 
     p = tmp / f"{sensor}.yaml"
     p.write_text(JOB.format(sensor=sensor, scene=scene))
     cfg = JobConfig.load(p)
-    gen, poses, plan = local_generator(cfg)
-    return cfg, poses, plan, gen
+    job = prepare_job(cfg)
+    return cfg, job.poses, job.plan, FrameGenerator(job)
 
 
 def _old_path(gen, cfg, poses, plan, frame):
     """The per-frame code vhgen had before scenes (one stream: camera draws, then the
     sensor), written out again here: person-only frames must stay byte-identical to it."""
     from vhgen.body.skinning import bone_matrices
-    from vhgen.pipeline.describe import sample_camera
+    from vhgen.camera import sample_camera
     from vhgen.render.renderer import DepthLabelRenderer
-    from vhgen.sensor.model import SensorModel
+    from vhgen.sensor.simulator import SensorModel
 
     a, pose = int(plan.avatar_id[frame]), int(plan.pose_index[frame])
     rng = np.random.default_rng(int(plan.seeds[frame]))

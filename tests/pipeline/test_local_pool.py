@@ -19,10 +19,11 @@ from pathlib import Path
 
 import pytest
 
-from vhgen.config import JobConfig
+from tests.pipeline.faulty_worker import run_faulty
 from vhgen.errors import VhgenError
+from vhgen.executor.local import RemoteTraceback
+from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
-from vhgen.pipeline.local import RemoteTraceback
 from vhgen.pipeline.resources import choose_executor
 from vhgen.store.inspect import inspect_store
 
@@ -66,11 +67,11 @@ def test_worker_bug_keeps_its_traceback(cfg, tmp_path):
     """An internal error in a worker reaches the driver as the same exception type, with
     the worker's traceback attached (a bug must stay debuggable)."""
     with pytest.raises(RuntimeError, match="injected bug on shard 1") as info:
-        run_job(cfg, tmp_path / "bug.zarr", max_frames=8, faults={"crash": {1}},
-                executor="local")
+        run_faulty(cfg, tmp_path / "bug.zarr", {"crash": {1}}, max_frames=8,
+                   executor="local")
     cause = info.value.__cause__
     assert isinstance(cause, RemoteTraceback)
-    assert "worker.py" in cause.text and "in run" in cause.text
+    assert "faulty_worker.py" in cause.text and "in run" in cause.text
 
 
 def test_script_without_main_guard(cfg, tmp_path):
@@ -78,11 +79,11 @@ def test_script_without_main_guard(cfg, tmp_path):
     caller's main module (multiprocessing's spawn would, and fail)."""
     script = tmp_path / "plain.py"
     script.write_text(
-        "from vhgen.config import JobConfig\n"
+        "from vhgen.job_config import JobConfig\n"
         "from vhgen.pipeline.driver import run_job\n"
         f"s = run_job(JobConfig.load({str(tmp_path / 'pool.yaml')!r}), "
         f"{str(tmp_path / 'plain.zarr')!r}, max_frames=8)\n"
-        "print('frames', s['frames'], s['executor'])\n")
+        "print('frames', s.frames, s.executor)\n")
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                        cwd=tmp_path, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -175,34 +176,12 @@ def test_ctrl_c_is_one_line_and_stops_the_workers(tmp_path):
     assert rep.ok, rep.defects
 
 
-def test_big_arrays_reach_workers_as_shared_memory_maps(tmp_path):
-    """Arrays of load() of at least SPILL_BYTES are written once and read back as
-    read-only memory maps, equal to what was sent; small ones, dict values below the
-    limit and other values pass unchanged."""
-    import numpy as np
-
-    from vhgen.pipeline import local
-
-    big = np.arange(local.SPILL_BYTES // 8 + 1, dtype=np.float64).reshape(-1, 1)
-    small = np.arange(10)
-    args = (big, small, {"seeds": big.ravel().astype(np.uint64), "n": small}, [1, 2], 0.5)
-    sent = local._spill(args, tmp_path)
-    assert isinstance(sent[0], local._MappedArray) and sent[1] is small
-    assert isinstance(sent[2]["seeds"], local._MappedArray) and sent[2]["n"] is small
-    assert sent[3:] == args[3:]
-    got = local._mapped(sent)
-    assert isinstance(got[0], np.memmap) and not got[0].flags.writeable
-    assert np.array_equal(got[0], big) and got[0].dtype == big.dtype
-    assert np.array_equal(got[2]["seeds"], args[2]["seeds"])
-    assert len(list(tmp_path.glob("*.npy"))) == 2
-
-
 def test_spilled_load_writes_the_same_bytes_and_cleans_up(cfg, tmp_path, monkeypatch):
-    """A job whose every load() array goes through a memory-mapped file writes the same
-    frames as one that pickles them, and leaves no temporary file behind."""
+    """A job whose every array goes to the workers through a memory-mapped file writes
+    the same frames as one that pickles them, and leaves no temporary file behind."""
     import tempfile
 
-    from vhgen.pipeline import local
+    from vhgen.executor import local
 
     tmp = tmp_path / "tmp"
     tmp.mkdir()
@@ -219,25 +198,6 @@ def test_spilled_load_writes_the_same_bytes_and_cleans_up(cfg, tmp_path, monkeyp
     run_job(cfg, tmp_path / "pickled.zarr", max_frames=8, executor="local")
     a, b = frames(tmp_path / "mapped.zarr"), frames(tmp_path / "pickled.zarr")
     assert len(a) >= 4 and a == b
-
-
-def test_stale_spill_folders_of_dead_drivers_are_removed(tmp_path, monkeypatch):
-    """A spill folder whose driver no longer runs (killed before close()) goes at the next
-    load; one of a running driver stays."""
-    import tempfile
-
-    from vhgen.pipeline import local
-
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    dead = subprocess.Popen([sys.executable, "-c", "pass"])
-    dead.wait()
-    stale = tmp_path / f"{local._SPILL_PREFIX}{dead.pid}-x1"
-    live = tmp_path / f"{local._SPILL_PREFIX}{os.getpid()}-x2"
-    for d in (stale, live):
-        d.mkdir()
-        (d / "array-0.npy").write_bytes(b"0")
-    local._remove_stale_spills()
-    assert not stale.exists() and live.exists()
 
 
 @contextmanager
@@ -265,10 +225,10 @@ def test_replacement_dying_in_setup_is_retried(cfg, tmp_path, executor):
 
     out = tmp_path / "setup-once.zarr"
     with _deadline(120):
-        summary = run_job(cfg, out, max_frames=16, executor=executor,
-                          faults={"die_once": {0}, "die_in_setup": 1})
-    assert summary["frames"] == 16 and summary["written"] == 4
-    assert summary["retries"] == 2  # the death on the shard, the death in set-up
+        summary = run_faulty(cfg, out, {"die_once": {0}, "die_in_setup": 1}, max_frames=16,
+                             executor=executor)
+    assert summary.frames == 16 and summary.written == 4
+    assert summary.retries == 2  # the death on the shard, the death in set-up
     rep = inspect_store(out)
     assert rep.ok, rep.defects
     man = pq.read_table(out / "manifest.parquet")
@@ -283,8 +243,8 @@ def test_replacement_always_dying_in_setup_ends_in_one_line(cfg, tmp_path):
 
     out = tmp_path / "setup-always.zarr"
     with _deadline(120), pytest.raises(VhgenError) as info:
-        run_job(cfg, out, max_frames=16, executor="local",
-                faults={"die_once": {0}, "die_in_setup": 100})
+        run_faulty(cfg, out, {"die_once": {0}, "die_in_setup": 100}, max_frames=16,
+                   executor="local")
     msg = str(info.value)
     assert "\n" not in msg
     assert f"shard 0 (frames 0-4): worker died {MAX_ATTEMPTS + 1} times; rerun with " \
@@ -294,7 +254,7 @@ def test_replacement_always_dying_in_setup_ends_in_one_line(cfg, tmp_path):
     assert parts <= {f"part-{k:06d}.parquet" for k in (1, 2, 3)}
     with _deadline(120):
         summary = run_job(cfg, out, max_frames=16, executor="local", resume=True)
-    assert summary["written"] == 4 - len(parts)  # only what was missing
+    assert summary.written == 4 - len(parts)  # only what was missing
     rep = inspect_store(out)
     assert rep.ok, rep.defects
 
@@ -304,9 +264,10 @@ def test_replacement_setup_error_is_one_line(cfg, tmp_path, executor):
     """A replacement whose set-up fails with a user-facing error (no GL device left)
     ends the job with that error for the shard it was to redo, in one line."""
     with _deadline(120), pytest.raises(VhgenError) as info:
-        run_job(cfg, tmp_path / "setup-error.zarr", max_frames=16, executor=executor,
-                faults={"die_once": {0}, "replacement_setup_error":
-                        "cannot create an egl OpenGL context: no device"})
+        run_faulty(cfg, tmp_path / "setup-error.zarr",
+                   {"die_once": {0}, "replacement_setup_error":
+                    "cannot create an egl OpenGL context: no device"},
+                   max_frames=16, executor=executor)
     assert str(info.value) == "shard 0: cannot create an egl OpenGL context: no device"
 
 
@@ -317,9 +278,9 @@ def test_dispatch_goes_on_while_a_replacement_sets_up(cfg, tmp_path):
     out = tmp_path / "overlap.zarr"
     others = [str(out / "manifest" / f"part-{k:06d}.parquet") for k in (1, 2, 3)]
     with _deadline(120):
-        summary = run_job(cfg, out, max_frames=16, executor="local",
-                          faults={"die_once": {0}, "replacement_waits_for": others})
-    assert summary["written"] == 4 and summary["retries"] == 1
+        summary = run_faulty(cfg, out, {"die_once": {0}, "replacement_waits_for": others},
+                             max_frames=16, executor="local")
+    assert summary.written == 4 and summary.retries == 1
     parts = {k: (out / "manifest" / f"part-{k:06d}.parquet").stat().st_mtime_ns
              for k in range(4)}
     assert parts[0] > max(parts[1], parts[2], parts[3])  # the retried shard came last

@@ -15,6 +15,7 @@ import hashlib
 import json
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,7 @@ def fingerprint(name: str, out: Path) -> dict[str, str]:
     import pyarrow.parquet as pq
     import zarr
 
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
     from vhgen.yamlio import configs_dir
 
@@ -58,7 +59,10 @@ def fingerprint(name: str, out: Path) -> dict[str, str]:
     run_job(cfg, out, max_frames=FRAMES, executor="local")
     g = zarr.open_group(str(out), mode="r")
     prints = {}
-    for key in sorted(g.array_keys()):
+    with warnings.catch_warnings():  # the manifest and report files are not zarr nodes
+        warnings.simplefilter("ignore")
+        keys = sorted(g.array_keys())
+    for key in keys:
         a = np.ascontiguousarray(g[key][:])
         prints[key] = hashlib.sha256(a.dtype.str.encode() + str(a.shape).encode()
                                      + a.tobytes()).hexdigest()

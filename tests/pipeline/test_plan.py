@@ -1,6 +1,6 @@
 import numpy as np
 
-from vhgen.config import AvatarConfig
+from vhgen.job_config import AvatarConfig
 from vhgen.pipeline.plan import avatar_params, frame_seed, make_plan
 
 

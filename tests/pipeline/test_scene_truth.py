@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from test_frames import _generator  # same folder (pytest puts it on sys.path)
 
-from vhgen.camera import Intrinsics
-from vhgen.config import JobConfig
+from vhgen.camera import Intrinsics, project
 from vhgen.errors import ConfigError
+from vhgen.job_config import JobConfig
 from vhgen.scene.geometry import PERSON, PROP
-from vhgen.scene.truth import VISIBILITY_TOLERANCE_M, joint_visibility, project
+from vhgen.scene.truth import VISIBILITY_TOLERANCE_M, joint_visibility
 
 SCENE = """scene:
   floor: true

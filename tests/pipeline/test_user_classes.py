@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vhgen.config import JobConfig
 from vhgen.errors import ConfigError
+from vhgen.job_config import JobConfig
 from vhgen.scene.geometry import PROP, SCENE_CLASSES
 
 BASE = """

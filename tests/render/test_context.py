@@ -76,7 +76,7 @@ def test_gpu_context_is_refused_without_a_gpu():
 
 
 def test_gpus_per_worker_config_and_actor_options(tmp_path):
-    from vhgen.config import JobConfig
+    from vhgen.job_config import JobConfig
     from vhgen.pipeline.resources import actor_options, worker_context
 
     p = tmp_path / "g.yaml"

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vhgen.camera import Intrinsics, pixel_rays
+from vhgen.camera import CameraPose, Intrinsics, pixel_rays
 from vhgen.errors import RenderError
 from vhgen.render.renderer import DepthLabelRenderer, Draw
 from vhgen.render.scene import SceneRenderer
-from vhgen.scene.description import CameraPose, FrameDescription, Person
+from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import FLOOR, PERSON, PROP, WALL, StaticMesh, quad
 
 INTR = Intrinsics(160, 120, 150.0, 150.0, 79.5, 59.5)

@@ -6,10 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vhgen.config import CAMERA_PRESETS, JobConfig
+from vhgen.camera import mounted_camera, project, sample_camera
 from vhgen.errors import ConfigError
-from vhgen.pipeline.describe import mounted_camera, sample_camera
-from vhgen.scene.truth import project
+from vhgen.job_config import CAMERA_PRESETS, JobConfig
 
 
 def _load(tmp_path, camera: str) -> JobConfig:

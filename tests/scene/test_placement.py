@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from vhgen.body.skinning import skin_vertices
-from vhgen.config import JobConfig
+from vhgen.job_config import JobConfig
 from vhgen.scene.placement import Disc, inside, visible_fraction
 
 SCENE = """
@@ -42,23 +42,22 @@ def _separated(a: np.ndarray, b: np.ndarray) -> bool:
 
 @pytest.fixture(scope="module")
 def describer(tmp_path_factory, asset_dir):
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.mocap.retarget import load_all_maps
+    from dataclasses import replace
+
     from vhgen.pipeline.describe import FrameDescriber
+    from vhgen.pipeline.job import prepare_job
     from vhgen.pipeline.plan import avatar_params, frame_seed
-    from vhgen.pipeline.poses import load_poses
 
     p = tmp_path_factory.mktemp("place") / "scene.yaml"
     p.write_text(SCENE)
     cfg = JobConfig.load(p)
-    base = build_body(asset_dir, LabelScheme.load(cfg.labels))
-    poses = load_poses(cfg.motions, base.rig, load_all_maps(), cfg.poses)
+    job = prepare_job(cfg, asset_dir=asset_dir)
     n = 400  # frames over many seeds (each its own placement)
-    plan = {"avatar_id": np.arange(n) % 3, "pose_index": np.arange(n) % poses.num_poses,
-            "seeds": np.array([frame_seed(99, 0, k) for k in range(n)], np.uint64)}
-    avatars = [avatar_params(cfg.seed, a, cfg.avatars) for a in range(3)]
-    return FrameDescriber(cfg, asset_dir, poses.rotations, poses.roots, plan, avatars), n
+    plan = replace(job.plan, num_frames=n, avatar_id=np.arange(n) % 3,
+                   pose_index=np.arange(n) % job.poses.num_poses,
+                   seeds=np.array([frame_seed(99, 0, k) for k in range(n)], np.uint64),
+                   avatars=[avatar_params(cfg.seed, a, cfg.avatars) for a in range(3)])
+    return FrameDescriber(replace(job, plan=plan)), n
 
 
 def test_placement_never_intersects_over_seeds(describer):

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vhgen.config import JobConfig
 from vhgen.errors import ConfigError
-from vhgen.scene.config import CAMERA_CLEARANCE_M, PERSON_CLEARANCE_M, RoomConfig, SceneConfig
+from vhgen.job_config import JobConfig
 from vhgen.scene.geometry import FLOOR, WALL
 from vhgen.scene.room import sample_room, static_geometry
+from vhgen.scene.scene_config import CAMERA_CLEARANCE_M, PERSON_CLEARANCE_M, RoomConfig, SceneConfig
 
 
 def _inside(corners: np.ndarray, p: np.ndarray) -> float:

@@ -52,7 +52,7 @@ def test_components_are_judged_separately():
 
 
 def test_makehuman_body_is_closed_and_its_tights_are_not(asset_dir, shotton):
-    from vhgen.body.model import build_body
+    from vhgen.body.avatar import build_body
 
     body = build_body(asset_dir, shotton)
     assert (closed_sides(body.vertices, body.faces) == OUTWARD).all()

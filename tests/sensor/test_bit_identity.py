@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from vhgen.bench.scenes import Frame, Rect, analytic_frame
-from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.simulator import SensorConfig, SensorModel
 from vhgen.yamlio import configs_dir
 
 STORE = Path(__file__).with_name("fingerprints.json")

@@ -5,7 +5,7 @@ import pytest
 
 from vhgen.camera import pixel_rays
 from vhgen.sensor.effects import AxialNoise
-from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.simulator import SensorConfig, SensorModel
 from vhgen.sensor.stages import AxialNoiseStage
 from vhgen.sensor.state import SensorState
 from vhgen.yamlio import configs_dir

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from vhgen.errors import ConfigError
-from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.simulator import SensorConfig, SensorModel
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 EXAMPLE = DOCS / "examples" / "edge_cleanup.py"

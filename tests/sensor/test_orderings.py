@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from vhgen.camera import Intrinsics
 from vhgen.errors import ConfigError
-from vhgen.sensor.config import SensorConfig, parse_effects
-from vhgen.sensor.model import SensorModel
+from vhgen.sensor.sensor_config import SensorConfig, parse_effects
+from vhgen.sensor.simulator import SensorModel
 from vhgen.sensor.spec import Choice, Encoding, Flag, Number, effect_types
 
 H, W, F, B = 24, 40, 57.1, 0.075

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vhgen.bench.scenes import analytic_frame
-from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.simulator import SensorConfig, SensorModel
 
 F, B = 571.26, 0.075
 

@@ -5,7 +5,7 @@ import pytest
 
 from vhgen.errors import ConfigError
 from vhgen.sensor.effects import CorrelationWindow, LensDistortion, ProjectorShadow
-from vhgen.sensor.model import SensorConfig, SensorModel
+from vhgen.sensor.simulator import SensorConfig, SensorModel
 from vhgen.sensor.spec import SpecError, effect_types
 
 F, B = 571.26, 0.075

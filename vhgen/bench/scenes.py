@@ -12,16 +12,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vhgen.body.avatar import build_body
 from vhgen.body.labels import LabelScheme
-from vhgen.body.model import build_body
 from vhgen.body.skinning import bone_matrices, posed_heads
-from vhgen.camera import Intrinsics, look_at, pixel_rays
+from vhgen.camera import CameraPose, Intrinsics, look_at, pixel_rays
 from vhgen.errors import RenderError
 from vhgen.mocap.bvh import read_bvh
 from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
 from vhgen.render.renderer import DepthLabelRenderer
 from vhgen.render.scene import SceneRenderer
-from vhgen.scene.description import CameraPose, FrameDescription, Person
+from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import WALL, StaticMesh, quad
 
 

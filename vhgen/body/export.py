@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vhgen.body.model import Body
+from vhgen.body.avatar import Body
 from vhgen.body.skinning import bone_matrices, skin_vertices, skin_vertices_dqs
 
 

@@ -25,8 +25,8 @@ def _progress(msg: str) -> None:
 
 def load_any_forest(path: str, fx: float | None = None) -> Any:
     """A vhgen forest file, or a PCL tree file / directory of them."""
-    from vhgen.forest.model import Forest
     from vhgen.forest.pcl import load_pcl_forest
+    from vhgen.forest.trees import Forest
 
     p = Path(path)
     if p.is_dir() or p.suffix == ".txt":
@@ -57,7 +57,7 @@ def _params(args: argparse.Namespace) -> Any:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from vhgen.forest.driver import train_forest
+    from vhgen.forest.from_stores import train_forest
 
     params = _params(args)
     params.check()
@@ -65,7 +65,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         raise ForestError(f"--workers {args.workers}: must be >= 1")
     forest = train_forest(args.stores, params, max_frames=args.max_frames,
                           workers=args.workers, address=args.address,
-                          progress=None if args.quiet else _progress)
+                          executor=args.executor, progress=None if args.quiet else _progress)
     path = forest.save(args.out)
     nodes = [t["nodes"] for t in forest.meta["trees"]]
     print(f"wrote {path}: {forest.num_trees} trees ({', '.join(map(str, nodes))} nodes), "
@@ -132,7 +132,7 @@ def _cmd_label(args: argparse.Namespace) -> int:
     from PIL import Image
 
     from vhgen.forest.evaluate import palette_for
-    from vhgen.forest.model import Predictor
+    from vhgen.forest.trees import Predictor
 
     forest = load_any_forest(args.forest)
     depth = read_depth_png(args.depth)
@@ -150,8 +150,8 @@ def _cmd_label(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from vhgen.forest.model import Forest
     from vhgen.forest.pcl import export_pcl
+    from vhgen.forest.trees import Forest
 
     forest = Forest.load(args.forest)
     paths = export_pcl(forest, args.output)
@@ -192,7 +192,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="thresholds drawn in [-R, R] mm (default 1000)")
     t.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
     t.add_argument("--workers", type=A.int_range(1, 4096),
-                   help="Ray workers holding disjoint image sets (default: in process)")
+                   help="workers holding disjoint image sets (default: one, in process)")
+    t.add_argument("--executor", choices=("auto", "local", "ray"), default="auto",
+                   help="where the workers run: local processes (auto without --address) "
+                        "or Ray actors (auto with --address; without it, a local Ray)")
     t.add_argument("--address", type=A.text("address"),
                    help="existing Ray cluster (e.g. auto or ray://host:10001)")
     t.add_argument("--hist-budget-mb", type=A.int_range(1), default=256,

@@ -1,20 +1,22 @@
 """Which frames a forest trains or is evaluated on: store checks and frame selection.
 
-Frames are addressed globally: the stores in the order given, frames in store order,
-``global id`` counting across stores. Everything seeded derives from global ids, so the
-same stores and seed select and sample the same pixels on any number of workers.
+Stores are read through :mod:`vhgen.store` (the one reader of vhgen stores). Frames are
+addressed globally: the stores in the order given, frames in store order, ``global id``
+counting across stores. Everything seeded derives from global ids, so the same stores
+and seed select and sample the same pixels on any number of workers.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from vhgen.errors import ForestError
+from vhgen.errors import ForestError, StoreError
+from vhgen.store.zarr_store import open_store, read_attrs
+from vhgen.store.zarr_store import read_frames as read_store_frames
 
 
 @dataclass(frozen=True)
@@ -28,12 +30,12 @@ class StoreInfo:
     fx: float
     fy: float
     sensor: str
+    frames_per_shard: int
+    label_colors: tuple[tuple[int, int, int], ...] | None = None
 
 
 def store_info(path: str | Path) -> StoreInfo:
     """Check that ``path`` is a vhgen store with depth and labels; one-line ForestError if not."""
-    import zarr
-
     p = Path(path)
     if not p.exists():
         raise ForestError(f"{p}: no such store")
@@ -44,8 +46,11 @@ def store_info(path: str | Path) -> StoreInfo:
         if not (p / name / "zarr.json").is_file():
             raise ForestError(f"{p}: store has no `{name}` array; the forest needs depth and "
                               "per-pixel labels")
-    g = zarr.open_group(str(p), mode="r", zarr_format=3)
-    attrs = json.loads(json.dumps(dict(g.attrs)))
+    try:
+        g = open_store(p)
+        attrs = read_attrs(p)
+    except StoreError as e:
+        raise ForestError(str(e)) from None
     names = attrs.get("label_names")
     if not names:
         raise ForestError(f"{p}: store has no `label_names` attribute")
@@ -57,9 +62,12 @@ def store_info(path: str | Path) -> StoreInfo:
     labels: Any = g["labels"]
     if depth.shape != labels.shape or depth.ndim != 3:
         raise ForestError(f"{p}: depth {depth.shape} and labels {labels.shape} differ")
+    colors = attrs.get("label_colors")
     return StoreInfo(str(p), int(depth.shape[0]), str(attrs.get("label_scheme", "")),
                      tuple(names), float(intr["fx"]), float(intr.get("fy", intr["fx"])),
-                     str(sensor.get("name", "")))
+                     str(sensor.get("name", "")),
+                     int(depth.shards[0] if depth.shards else depth.chunks[0]),
+                     tuple(tuple(c) for c in colors) if colors else None)
 
 
 def check_compatible(infos: list[StoreInfo], what: str = "training") -> StoreInfo:
@@ -95,27 +103,19 @@ def select_frames(infos: list[StoreInfo], max_frames: int | None,
 
 
 def read_frames(frames: list[tuple[str, int, int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Depth (N, H, W) uint16 mm and labels (N, H, W) uint8 of the selected frames."""
-    import zarr
-
+    """Depth (N, H, W) uint16 mm and labels (N, H, W) uint8 of the selected frames, in
+    the order given (one contiguous read per shard touched)."""
     by_store: dict[str, list[int]] = {}
     for path, f, _ in frames:
         by_store.setdefault(path, []).append(f)
     depth_parts, label_parts = [], []
     for path, fs in by_store.items():
-        g = zarr.open_group(path, mode="r", zarr_format=3)
-        gd: Any = g["depth"]
-        gl: Any = g["labels"]
-        idx = np.asarray(fs)
-        # contiguous runs read much faster than fancy indexing on sharded arrays
-        if len(idx) and np.all(np.diff(idx) == 1):
-            sl = slice(int(idx[0]), int(idx[-1]) + 1)
-            depth_parts.append(gd[sl])
-            label_parts.append(gl[sl])
-        else:
-            depth_parts.append(np.stack([gd[int(i)] for i in idx]) if len(idx) else
-                               np.zeros((0,) + gd.shape[1:], np.uint16))
-            label_parts.append(np.stack([gl[int(i)] for i in idx]) if len(idx) else
-                               np.zeros((0,) + gl.shape[1:], np.uint8))
+        root = open_store(path)
+        fps = store_info(path).frames_per_shard
+        got = read_store_frames(root, ("depth", "labels"), np.asarray(fs, np.int64), fps)
+        depth_parts.append(got["depth"])
+        label_parts.append(got["labels"])
+    if not depth_parts:
+        return np.zeros((0, 0, 0), np.uint16), np.zeros((0, 0, 0), np.uint8)
     return (np.concatenate(depth_parts).astype(np.uint16, copy=False),
             np.concatenate(label_parts).astype(np.uint8, copy=False))

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from vhgen.forest.data import StoreInfo, read_frames, select_frames
-from vhgen.forest.model import Forest, Predictor
+from vhgen.forest.trees import Forest, Predictor
 
 log = logging.getLogger(__name__)
 

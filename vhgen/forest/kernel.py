@@ -170,7 +170,7 @@ def tree_levels(left: np.ndarray, root: int) -> int:
 
 def pack_forest(offsets: np.ndarray, thresh: np.ndarray, left: np.ndarray, counts: np.ndarray,
                 roots: np.ndarray) -> PackedForest:
-    """Pack the arrays of a :class:`vhgen.forest.model.Forest` (same meanings and dtypes)."""
+    """Pack the arrays of a :class:`vhgen.forest.trees.Forest` (same meanings and dtypes)."""
     left = np.asarray(left, np.int64)
     n = len(left)
     leaf = left < 0

@@ -27,7 +27,7 @@ import numpy as np
 
 from vhgen.errors import ForestError
 from vhgen.forest.features import BACKGROUND_MM, FOCAL_SCALE, prepare_depth
-from vhgen.forest.model import Forest
+from vhgen.forest.trees import Forest
 
 PCL_BACKGROUND = 29  # label_common.h: Background = 29
 PCL_NUM_PARTS = 25

@@ -1,4 +1,4 @@
-"""Level-wise forest training from class histograms (no Ray here; see distributed.py).
+"""Level-wise forest training from class histograms (where the shards run: from_stores.py).
 
 One tree grows one level at a time over ALL its training samples, the way GPU and
 distributed forest trainers do it:
@@ -31,7 +31,7 @@ import numba
 import numpy as np
 
 from vhgen.forest.features import BACKGROUND_MM, draw_offsets, feature_at, prepare_depth
-from vhgen.forest.model import Forest
+from vhgen.forest.trees import Forest
 
 log = logging.getLogger(__name__)
 
@@ -222,7 +222,8 @@ class ImageShard:
     """A set of training images and their samples for the tree being grown.
 
     depth : (M, H, W) uint16 mm; labels : (M, H, W) uint8 (0 = background, k = part k);
-    global_ids : (M,) global frame ids (seed streams). Ray actors wrap exactly this class.
+    global_ids : (M,) global frame ids (seed streams). The workers of a pool
+    (:mod:`vhgen.executor`) are of this class.
     """
 
     def __init__(self, depth: np.ndarray, labels: np.ndarray, global_ids: Sequence[int],
@@ -294,16 +295,6 @@ class ShardPool(Protocol):
     """Calls a method on every shard and returns the results in shard order."""
 
     def map(self, method: str, *args: Any) -> list[Any]: ...
-
-
-class LocalPool:
-    """In-process shards (the default; also what the tests split images with)."""
-
-    def __init__(self, shards: list[ImageShard]):
-        self.shards = shards
-
-    def map(self, method: str, *args: Any) -> list[Any]:
-        return [getattr(s, method)(*args) for s in self.shards]
 
 
 # ----------------------------------------------------------------------------- driver

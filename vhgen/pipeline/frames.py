@@ -1,7 +1,7 @@
 """Frame generation inside one process: describe, render, sensor, record, shard write.
 
 Per frame: :class:`~vhgen.pipeline.describe.FrameDescriber` builds the pure description
-from the plan, :class:`~vhgen.render.scene.SceneRenderer` draws its views, the sensor
+from the job's plan, :class:`~vhgen.render.scene.SceneRenderer` draws its views, the sensor
 model runs on the whole scene, and a :class:`~vhgen.store.record.FrameRecord` (the
 manifest row) is made from the description and the outputs.
 
@@ -13,18 +13,20 @@ from __future__ import annotations
 
 import json
 import logging
+import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vhgen.config import JobConfig
-from vhgen.pipeline.describe import FrameDescriber, sample_camera
+from vhgen.body.avatar import Body
+from vhgen.camera import pitch_roll_deg, project
+from vhgen.pipeline.describe import FrameDescriber
+from vhgen.pipeline.job import Job
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import unpack_ids
-from vhgen.scene.truth import joint_visibility, project
-from vhgen.sensor.model import SensorModel
+from vhgen.scene.truth import joint_visibility
+from vhgen.sensor.simulator import SensorModel
 from vhgen.store.manifest import write_part
 from vhgen.store.record import FrameRecord, PersonRecord
 from vhgen.store.zarr_store import write_shard
@@ -34,7 +36,21 @@ if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types her
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FrameGenerator", "FrameOutput", "sample_camera"]
+__all__ = ["FrameGenerator", "FrameOutput", "ShardResult"]
+
+
+@dataclass(frozen=True)
+class ShardResult:
+    """What a worker reports of a shard it wrote: its frames, the GL renderer, the valid
+    pixels over its frames, the people and props that found no place (by kind), and the
+    seconds it took (render, sensor and write)."""
+
+    shard: int
+    frames: int
+    renderer: str
+    valid_pixels: int
+    dropped: dict[str, int]
+    seconds: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,19 +68,20 @@ class FrameOutput:
 
 
 class FrameGenerator:
-    """Renders frames of one job. Heavy setup once; ``run_task`` per shard."""
+    """Renders frames of one :class:`~vhgen.pipeline.job.Job`. Heavy set-up once (a GL
+    context, unless one is given; the sensor model); ``run_task`` per shard.
 
-    def __init__(self, cfg: JobConfig, asset_dir: str | Path, pose_rotations: np.ndarray,
-                 pose_roots: np.ndarray, pose_meta: dict, plan_arrays: dict, avatars: list[dict],
-                 context=None, bodies: dict | None = None, base_hip_drop: float | None = None):
+    bodies : avatar id -> body already built (it only saves work)."""
+
+    def __init__(self, job: Job, context=None, bodies: dict[int, Body] | None = None):
         from vhgen.render.context import create_context
         from vhgen.render.renderer import DepthLabelRenderer
         from vhgen.render.scene import SceneRenderer
 
+        cfg = job.cfg
+        self.job = job
         self.cfg = cfg
-        self.pose_meta = pose_meta
-        self.describer = FrameDescriber(cfg, asset_dir, pose_rotations, pose_roots,
-                                        plan_arrays, avatars, bodies, base_hip_drop)
+        self.describer = FrameDescriber(job, bodies)
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
         self.sensor = SensorModel(cfg.sensor)
@@ -105,11 +122,10 @@ class FrameGenerator:
         intr = self.cfg.sensor.intrinsics
         visible = joint_visibility(intr, joints_cam, person.instance, view.depth,
                                    view.instances)
-        mid = int(self.pose_meta["motion_id"][person.pose_index])
+        motion_file, _, source_frame = self.job.poses.source(person.pose_index)
         return PersonRecord(
             instance=person.instance, avatar_id=person.avatar_id,
-            motion_file=self.pose_meta["motion_files"][mid],
-            source_frame=int(self.pose_meta["source_frame"][person.pose_index]),
+            motion_file=motion_file, source_frame=source_frame,
             pose_index=person.pose_index, placement=person.placement.reshape(-1).tolist(),
             body_offset=person.offset.tolist(),
             joints_cam=joints_cam.astype(np.float32).reshape(-1).tolist(),
@@ -126,7 +142,8 @@ class FrameGenerator:
         w2c = desc.camera.world_to_camera
         joints_cam = (person.joints @ w2c[:3, :3].T + w2c[:3, 3]).astype(np.float32)
         pose = person.pose_index
-        mid = int(self.pose_meta["motion_id"][pose])
+        motion_file, motion_sha1, source_frame = self.job.poses.source(pose)
+        pitch, roll = pitch_roll_deg(w2c)
         intr = self.cfg.sensor.intrinsics
         sc = self.cfg.scene
         scene = None if sc.is_person_only else {
@@ -134,9 +151,7 @@ class FrameGenerator:
             "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
         return FrameRecord(
             frame=desc.frame, shard=-1,
-            motion_file=self.pose_meta["motion_files"][mid],
-            motion_sha1=self.pose_meta["motion_sha1"][mid],
-            source_frame=int(self.pose_meta["source_frame"][pose]),
+            motion_file=motion_file, motion_sha1=motion_sha1, source_frame=source_frame,
             pose_index=pose, avatar_id=person.avatar_id,
             avatar_params=json.dumps({**body.params, "skinning": self.cfg.skinning},
                                      sort_keys=True),
@@ -149,11 +164,11 @@ class FrameGenerator:
             valid_pixels=valid_pixels, body_pixels=int((labels > 0).sum()),
             num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True),
             people=[self._person(desc, p, view) for p in desc.people],
-            camera_pitch_deg=float(np.degrees(np.arcsin(np.clip(-w2c[2, 1], -1, 1)))),
-            camera_roll_deg=float(np.degrees(np.arctan2(w2c[0, 1], -w2c[1, 1]))))
+            camera_pitch_deg=pitch, camera_roll_deg=roll)
 
-    def run_task(self, store: str, shard: int, start: int, stop: int) -> dict:
+    def run_task(self, store: str, shard: int, start: int, stop: int) -> ShardResult:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""
+        t = time.perf_counter()
         h, w = self.cfg.sensor.intrinsics.height, self.cfg.sensor.intrinsics.width
         n = stop - start
         depth = np.zeros((n, h, w), np.uint16)
@@ -178,36 +193,13 @@ class FrameGenerator:
                     extra={"instances": ids["instances"], "classes": ids["classes"]})
         num_joints = len(records[0].joints_cam) // 3
         write_part(store, shard, records, num_joints)
-        return {"shard": shard, "frames": n, "renderer": self.renderer_info,
-                "valid_pixels": int(sum(r.valid_pixels for r in records)), "dropped": dropped}
+        return ShardResult(shard, n, str(self.renderer_info),
+                           int(sum(r.valid_pixels for r in records)), dropped,
+                           time.perf_counter() - t)
 
     def close(self) -> None:
         self.scene.release()
         self.renderer.release()
-
-
-def local_generator(cfg: JobConfig, asset_dir: str | Path | None = None, context=None
-                    ) -> tuple[FrameGenerator, Any, Any]:
-    """A generator for ``cfg`` in this process, without Ray (tests, benchmarks, tools):
-    poses loaded and the plan made as the driver does. Returns (generator, poses, plan)."""
-    from vhgen.assets import resolve_asset_dir
-    from vhgen.body.labels import LabelScheme
-    from vhgen.body.model import build_body
-    from vhgen.mocap.retarget import RetargetMap, load_all_maps
-    from vhgen.pipeline.plan import make_plan
-    from vhgen.pipeline.poses import load_poses
-
-    asset_dir = resolve_asset_dir(cfg.assets) if asset_dir is None else asset_dir
-    base = build_body(Path(asset_dir), LabelScheme.load(cfg.labels))
-    rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
-    poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
-    plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
-    gen = FrameGenerator(cfg, asset_dir, poses.rotations, poses.roots,
-                         {"motion_id": poses.motion_id, "source_frame": poses.source_frame,
-                          "motion_files": poses.motion_files, "motion_sha1": poses.motion_sha1},
-                         {"avatar_id": plan.avatar_id, "pose_index": plan.pose_index,
-                          "seeds": plan.seeds}, plan.avatars, context=context)
-    return gen, poses, plan
 
 
 def _with_shard(record: FrameRecord, shard: int) -> FrameRecord:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.config import AvatarConfig
+from vhgen.job_config import AvatarConfig
 
 _AVATAR_STREAM = 0xA7A7
 _FRAME_STREAM = 0xF7A3
@@ -25,7 +25,7 @@ def frame_seed(job_seed: int, avatar_id: int, pose_index: int, camera: int = 0) 
 
 def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
     """Parameters of one avatar (shape, scale, clothing), drawn from its own seeded stream;
-    the body is rebuilt from them exactly (:func:`vhgen.body.model.build_body`)."""
+    the body is rebuilt from them exactly (:func:`vhgen.body.avatar.build_body`)."""
     rng = np.random.default_rng(np.random.SeedSequence([job_seed, _AVATAR_STREAM, avatar_id]))
     shape = cfg.shape.sample(rng)
     scale = float(rng.uniform(*cfg.scale))

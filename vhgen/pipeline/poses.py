@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from vhgen.body.mesh import Rig
-from vhgen.config import PosesConfig
 from vhgen.errors import VhgenError
+from vhgen.job_config import PosesConfig
 from vhgen.mocap.clips import ClipFailure, ClipReport, expand_motion_paths, load_clip
 from vhgen.mocap.posetable import read_pose_table
 from vhgen.mocap.retarget import RetargetMap, world_rotations
@@ -23,12 +23,13 @@ from vhgen.mocap.retarget import RetargetMap, world_rotations
 log = logging.getLogger(__name__)
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class PoseSet:
     """Poses on the target rig, all clips concatenated (float64).
 
     rotations (P, B, 3, 3) world skinning rotations; roots (P, 3) root head positions with
-    the clip grounded (its feet on y = 0); motion_id (P,), source_frame (P,).
+    the clip grounded (its feet on y = 0); motion_id (P,) index into ``motion_files`` and
+    ``motion_sha1``; source_frame (P,) the frame of the motion file each pose came from.
     """
 
     rotations: np.ndarray
@@ -42,6 +43,11 @@ class PoseSet:
     @property
     def num_poses(self) -> int:
         return int(self.rotations.shape[0])
+
+    def source(self, pose: int) -> tuple[str, str, int]:
+        """(motion file, its sha1, source frame) of pose ``pose``."""
+        mid = int(self.motion_id[pose])
+        return self.motion_files[mid], self.motion_sha1[mid], int(self.source_frame[pose])
 
 
 def load_poses(specs, rig: Rig, rmap: RetargetMap | list[RetargetMap],

@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from vhgen.config import JobConfig
 from vhgen.errors import VhgenError
+from vhgen.job_config import JobConfig
 
 
 def actor_options(cfg: JobConfig, local_resources: Mapping[str, float] | None = None

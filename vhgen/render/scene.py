@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.body.model import Body
+from vhgen.body.avatar import Body
+from vhgen.camera import world_to_projector
 from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
 from vhgen.scene.geometry import PERSON, StaticMesh
@@ -26,13 +27,6 @@ class SceneViews:
 
     camera: View
     projector_depth: np.ndarray | None
-
-
-def world_to_projector(world_to_camera: np.ndarray, baseline_m: float) -> np.ndarray:
-    """The projector sits at +baseline along the camera's x axis (rectified rig)."""
-    w2p = np.array(world_to_camera, dtype=np.float64)
-    w2p[0, 3] -= baseline_m
-    return w2p
 
 
 def merge_static(meshes: tuple[StaticMesh, ...] | list[StaticMesh]

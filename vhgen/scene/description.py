@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.camera import CameraPose
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import Disc
 from vhgen.scene.room import Room
@@ -53,20 +54,6 @@ class PlacedProp:
         if self.class_name != "prop":
             d["class"] = self.class_name
         return d
-
-
-@dataclass(frozen=True, eq=False)
-class CameraPose:
-    """world_to_camera (4, 4) float64 (OpenCV axes: x right, y down, z forward) and the
-    sampled mount: yaw about the subject (deg), distance and height (m), and for a
-    mounted camera its pitch and roll (deg; None when it looks at the subject)."""
-
-    world_to_camera: np.ndarray
-    yaw_deg: float
-    distance_m: float
-    height_m: float
-    pitch_deg: float | None = None
-    roll_deg: float | None = None
 
 
 @dataclass(frozen=True, eq=False)

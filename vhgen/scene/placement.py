@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.scene.config import CAMERA_CLEARANCE_M
 from vhgen.scene.room import Room
+from vhgen.scene.scene_config import CAMERA_CLEARANCE_M
 
 PLACEMENT_TRIES = 30
 CANDIDATES = 8  # spots drawn per try: screened for room and overlap together (cheap),

@@ -7,14 +7,14 @@ from functools import cached_property
 
 import numpy as np
 
-from vhgen.scene.config import (
+from vhgen.scene.geometry import StaticMesh, floor_mesh, room_floor, room_walls
+from vhgen.scene.scene_config import (
     CAMERA_CLEARANCE_M,
     OPEN_FLOOR_HALF_M,
     PERSON_CLEARANCE_M,
     RoomConfig,
     SceneConfig,
 )
-from vhgen.scene.geometry import StaticMesh, floor_mesh, room_floor, room_walls
 
 
 @dataclass(frozen=True, eq=False)

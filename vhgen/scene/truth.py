@@ -4,21 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from vhgen.camera import Intrinsics
+from vhgen.camera import Intrinsics, project
 
 # A joint (a bone head, inside the body) counts as visible when the surface rendered at
 # its pixel is this person's and lies at most this far in front of it: about the depth
 # of flesh over a joint. A limb of the same person crossing in front (farther than this)
 # or anyone / anything else at the pixel hides it.
 VISIBILITY_TOLERANCE_M = 0.15
-
-
-def project(intr: Intrinsics, points_cam: np.ndarray) -> np.ndarray:
-    """(J, 3) camera-frame points (OpenCV axes, z forward) -> (J, 2) float64 pixels
-    (u, v), pixel centres at integers; points with z <= 0 give NaN."""
-    p = np.asarray(points_cam, np.float64)
-    z = np.where(p[:, 2] > 0, p[:, 2], np.nan)
-    return np.column_stack([intr.fx * p[:, 0] / z + intr.cx, intr.fy * p[:, 1] / z + intr.cy])
 
 
 def joint_visibility(intr: Intrinsics, points_cam: np.ndarray, instance: int,

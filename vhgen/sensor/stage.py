@@ -1,6 +1,6 @@
 """The runtime half of an effect: a stage compiled from a spec for one sensor.
 
-A stage is built once per :class:`vhgen.sensor.model.SensorModel` (so it may own caches:
+A stage is built once per :class:`vhgen.sensor.simulator.SensorModel` (so it may own caches:
 undistortion maps, kernels' scratch) and applied to every frame. Stage classes register
 themselves for their spec class (``class FooStage(Stage, spec=Foo)``).
 """
@@ -11,7 +11,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
 
-from vhgen.sensor.config import SensorConfig
+from vhgen.sensor.sensor_config import SensorConfig
 from vhgen.sensor.spec import EffectSpec
 from vhgen.sensor.state import SensorState
 

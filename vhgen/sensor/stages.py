@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.camera import Intrinsics
-from vhgen.sensor.config import SensorConfig
 from vhgen.sensor.effects import (
     AxialNoise,
     CorrelationWindow,
@@ -33,6 +32,7 @@ from vhgen.sensor.kernels import (
     screen_space_shadow,
 )
 from vhgen.sensor.pattern import PATTERN_PAD
+from vhgen.sensor.sensor_config import SensorConfig
 from vhgen.sensor.stage import Stage
 from vhgen.sensor.state import NORMAL_TABLE, SensorState
 

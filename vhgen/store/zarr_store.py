@@ -24,6 +24,7 @@ the arrays), which is what resuming checks.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -134,3 +135,24 @@ def clean_partials(path: str | Path) -> int:
 
 def read_attrs(path: str | Path) -> dict:
     return json.loads(json.dumps(dict(open_store(path).attrs)))
+
+
+def read_frames(root: Any, names: Sequence[str], frames: np.ndarray,
+                frames_per_shard: int) -> dict[str, np.ndarray]:
+    """Read ``frames`` (sorted or not) of each array; one contiguous slice per shard touched.
+
+    Returns name -> (len(frames), ...) arrays in the order of ``frames``.
+    """
+    frames = np.asarray(frames, np.int64)
+    out: dict[str, np.ndarray] = {}
+    shards = frames // frames_per_shard
+    for name in names:
+        arr = root[name]
+        res = np.empty((len(frames), *arr.shape[1:]), arr.dtype)
+        for s in np.unique(shards):
+            sel = np.nonzero(shards == s)[0]
+            lo, hi = int(frames[sel].min()), int(frames[sel].max())
+            block = arr[lo:hi + 1]
+            res[sel] = block[frames[sel] - lo]
+        out[name] = res
+    return out

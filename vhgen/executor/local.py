@@ -1,14 +1,17 @@
-"""The local pool: frame workers in processes of this machine, without Ray.
+"""The local pool: worker objects in processes of this machine, without Ray.
 
 A local Ray costs 3-6 s to start and about 1 s to stop on a small machine
-(``../shared/design/platform-notes.md``), more than a whole small job. For a job on one
-machine the driver therefore runs its :class:`~vhgen.pipeline.worker.FrameWorker` s in
-plain child processes, one socket pair each. The contract is the Ray path's: workers set
-up while the driver plans, every shard is written by its worker, a worker that dies is
-replaced and its shard redone whole, so no frame is lost or duplicated. A replacement
-sets up while the other workers go on: the dispatch never waits for it, and one that dies
-or fails in its set-up answers its first shard with that (the dispatch counts a death as
-an attempt on the shard, as for a Ray actor that dies loading).
+(``../shared/design/platform-notes.md``), more than a whole small job. For work on one
+machine vhgen therefore runs its workers (the frame job's
+:class:`~vhgen.pipeline.worker.FrameWorker`, the forest's image shards) in plain child
+processes, one socket pair each; :class:`~vhgen.executor.raypool.RayPool` offers the same
+interface on Ray actors. The contract: a worker object is constructed in its process
+from picklable arguments (its set-up starts at once, while the caller prepares), a
+``setup`` call hands every worker the same large inputs and is replayed on a
+replacement, ``submit``/``wait`` run calls one at a time per worker, a worker that dies is
+reported as ``died`` (its caller decides what to redo). A replacement sets up while the
+other workers go on: the caller never waits for it, and one that dies or fails in its
+set-up answers its first call with that.
 
 A child is a fresh interpreter started with ``python -c`` on the driver's ``sys.path``,
 not a ``multiprocessing`` spawn: spawn re-runs the caller's main script in every child,
@@ -19,6 +22,7 @@ end-of-file on its socket and exits.
 
 from __future__ import annotations
 
+import io
 import itertools
 import json
 import logging
@@ -39,16 +43,15 @@ from typing import Any
 
 import numpy as np
 
-from vhgen.config import JobConfig
 from vhgen.errors import RenderError
 
 log = logging.getLogger(__name__)
 
 _STOP_SECONDS = 5.0  # a worker told to stop that is still alive after this is terminated
-# arrays of load() at least this big reach the workers as one memory-mapped file each
-# instead of a pickled copy per worker (see LocalPool.load)
+# arrays of a setup() call at least this big reach the workers as one memory-mapped file
+# each instead of a pickled copy per worker (see LocalPool.setup)
 SPILL_BYTES = 1 << 20
-_SPILL_PREFIX = "vhgen-load-"  # + the driver's pid + "-"
+_SPILL_PREFIX = "vhgen-setup-"  # + the caller's pid + "-"
 
 
 class RemoteTraceback(Exception):
@@ -63,66 +66,79 @@ class RemoteTraceback(Exception):
 
 
 _CHILD = ("import json, sys; sys.path[:] = json.loads(sys.argv[2]); "
-          "from vhgen.pipeline.local import serve; serve(int(sys.argv[1]))")
+          "from vhgen.executor.local import serve; serve(int(sys.argv[1]))")
 
 
 def serve(fd: int) -> None:
-    """A worker process (its entry point): read the config from the socket ``fd``, set
-    up, then answer ``(method, args)`` messages until told to stop or the driver's end of
-    the socket closes."""
+    """A worker process (its entry point): read the worker class and its arguments from
+    the socket ``fd``, construct it, then answer ``(op, (method, args))`` messages until
+    told to stop or the caller's end of the socket closes."""
     import signal
 
-    from vhgen.pipeline.worker import FrameWorker
-
-    # Ctrl-C on a terminal reaches the whole process group: the driver handles it and
+    # Ctrl-C on a terminal reaches the whole process group: the caller handles it and
     # stops the workers; a worker printing its own KeyboardInterrupt would only be noise
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     conn = Connection(fd)
     try:
-        _, (cfg, asset_dir, faults) = conn.recv()
+        _, (worker_cls, init) = conn.recv()
     except (EOFError, OSError):
         return
-    worker = FrameWorker(cfg, asset_dir, faults)
+    worker: Any = None
+    failed: tuple[str, Any] | None = None
+    try:
+        worker = worker_cls(*init)
+    except Exception as e:  # answered to every call: the caller decides what the user sees
+        failed = _error_reply(e)
     while True:
         try:
-            op, args = conn.recv()
+            op, payload = conn.recv()
         except (EOFError, OSError):
-            return  # the driver is gone
+            return  # the caller is gone
         if op == "stop":
-            # every shard is written and renamed in place: end now, as a multiprocessing
+            # every result is written and renamed in place: end now, as a multiprocessing
             # child does, without the seconds' tenth of GL and interpreter teardown
             conn.close()
             sys.stdout.flush()
             sys.stderr.flush()
             os._exit(0)
-        try:
-            if op == "load":
-                args = _mapped(args)
-            reply: tuple[str, Any] = ("ok", getattr(worker, op)(*args))
-        except Exception as e:  # sent back whole: the driver decides what the user sees
-            text = traceback.format_exc()
+        method, args = payload
+        reply: tuple[str, Any]
+        if failed is not None:
+            reply = failed
+        else:
             try:
-                pickle.dumps(e)
-            except Exception:
-                e = RuntimeError(f"{type(e).__name__}: {e}")
-            reply = ("error", (e, text))
+                if op == "setup":
+                    args = _mapped_loads(args)
+                reply = ("ok", getattr(worker, method)(*args))
+            except Exception as e:  # sent back whole
+                reply = _error_reply(e)
         try:
             conn.send(reply)
         except OSError:
-            return  # the driver is gone (killed): nobody to answer
+            return  # the caller is gone (killed): nobody to answer
+
+
+def _error_reply(e: Exception) -> tuple[str, Any]:
+    text = traceback.format_exc()
+    try:
+        pickle.dumps(e)
+    except Exception:
+        e = RuntimeError(f"{type(e).__name__}: {e}")
+    return "error", (e, text)
 
 
 @dataclass
 class _Worker:
     process: subprocess.Popen
     conn: Connection
+    init: tuple  # the constructor's arguments (a replacement gets the same)
     busy: Any = None  # the task in flight
     stopping: bool = False  # told to stop
-    # a replacement: its set-up (the reply to "load") is not read yet, and the run of
-    # the task submitted meanwhile waits here for it (None: no task yet)
+    # a replacement: its set-up (the reply to the replayed "setup") is not read yet, and
+    # the call submitted meanwhile waits here for it (None: no call yet)
     loading: bool = False
     deferred: tuple | None = None
-    writer: threading.Thread | None = None  # sends the poses and plan to a replacement
+    writer: threading.Thread | None = None  # sends the set-up inputs to a replacement
 
 
 class WorkerDied(RenderError):
@@ -130,25 +146,25 @@ class WorkerDied(RenderError):
 
 
 class LocalPool:
-    """Frame workers in child processes. ``start`` spawns them (set-up begins at once),
-    ``load`` hands every worker the poses and the plan, ``submit``/``wait`` run shards."""
+    """Workers of class ``worker_cls`` in child processes. ``start`` spawns them (each
+    constructs its worker at once), ``setup`` hands every worker the same inputs,
+    ``submit``/``wait`` run calls, ``map`` calls every worker and gathers the results."""
 
-    def __init__(self, cfg: JobConfig, asset_dir: str, faults: dict | None = None):
-        self.cfg = cfg
-        self.asset_dir = asset_dir
-        self.faults = faults
+    def __init__(self, worker_cls: type):
+        self.worker_cls = worker_cls
         self.workers: dict[int, _Worker] = {}
         self._retired: list[_Worker] = []  # told to stop, not reaped yet
         self._next_id = 0
-        self._load_args: tuple | None = None
+        self._setup: tuple | None = None  # the last setup call, replayed on replacements
         self._spill_dir: str | None = None
 
     # -- life cycle ------------------------------------------------------------------
-    def start(self, n: int) -> list[int]:
-        """Spawn ``n`` workers; returns their ids. Does not wait for their set-up."""
-        return [self._spawn() for _ in range(n)]
+    def start(self, inits: list[tuple]) -> list[int]:
+        """Spawn one worker per tuple of constructor arguments; returns their ids. Does
+        not wait for their construction."""
+        return [self._spawn(tuple(init)) for init in inits]
 
-    def _spawn(self) -> int:
+    def _spawn(self, init: tuple) -> int:
         a, b = socket.socketpair()
         ours = Connection(a.detach())
         p = subprocess.Popen([sys.executable, "-c", _CHILD, str(b.fileno()),
@@ -157,31 +173,39 @@ class LocalPool:
         b.close()  # the child's end only: its death then reads as end-of-file here
         wid = self._next_id
         self._next_id += 1
-        self.workers[wid] = w = _Worker(p, ours)
-        self._send(w, "config", (self.cfg, self.asset_dir, self.faults))
+        self.workers[wid] = w = _Worker(p, ours, init)
+        self._send(w, "init", (self.worker_cls, init))
         return wid
 
-    def load(self, *args: Any) -> list[str]:
-        """Send the poses and the plan to every worker and wait for all of them; returns
-        their GL renderer strings. A worker's set-up error (a VhgenError) is raised here,
-        a worker that dies setting up raises :class:`WorkerDied`.
+    def setup(self, method: str, *args: Any) -> list[Any]:
+        """Call ``method(*args)`` on every worker and wait for all of them; returns their
+        results in worker order. A worker's error is raised here (with its traceback as
+        the cause), a worker that dies in it raises :class:`WorkerDied`. The call is
+        replayed on every later replacement before its first task.
 
-        Arrays of at least :data:`SPILL_BYTES` (the pose table: 2.2 kB a pose, 0.45 GB
-        for 200k poses), top level or values of a top-level dict, are written once to a
-        temporary folder and reach every worker as a read-only memory map of that file:
-        one copy in the page cache shared by all workers, as Ray's object store does,
-        instead of one pickled copy sent to and held by each. The folder (in the
-        system's temporary directory, ``TMPDIR``) is removed by :meth:`close`; one left by
-        a driver that was killed is removed by the next job's load."""
+        Arrays of at least :data:`SPILL_BYTES` anywhere in ``args`` (the pose table: 2.2
+        kB a pose, 0.45 GB for 200k poses) are written once to a temporary folder and
+        reach every worker as a read-only memory map of that file: one copy in the page
+        cache shared by all workers, as Ray's object store does, instead of one pickled
+        copy sent to and held by each. The folder (in the system's temporary directory,
+        ``TMPDIR``) is removed by :meth:`close`; one left by a caller that was killed is
+        removed by the next pool's set-up."""
         if self._spill_dir is None:
             _remove_stale_spills()
             self._spill_dir = tempfile.mkdtemp(prefix=f"{_SPILL_PREFIX}{os.getpid()}-")
-        self._load_args = _spill(args, Path(self._spill_dir))
+        self._setup = (method, spill_dumps(args, Path(self._spill_dir)))
         for w in self.workers.values():
-            self._send(w, "load", self._load_args)
-        return [self._take_load(wid) for wid in list(self.workers)]
+            self._send(w, "setup", self._setup)
+        return [self._take(wid) for wid in list(self.workers)]
 
-    def _take_load(self, wid: int) -> str:
+    def map(self, method: str, *args: Any) -> list[Any]:
+        """Call ``method(*args)`` on every worker and wait for all of them (not replayed
+        on replacements); results in worker order, errors raised as by :meth:`setup`."""
+        for w in self.workers.values():
+            self._send(w, "call", (method, args))
+        return [self._take(wid) for wid in list(self.workers)]
+
+    def _take(self, wid: int) -> Any:
         w = self.workers[wid]
         kind, value = self._recv(wid)
         if kind == "died":
@@ -189,7 +213,7 @@ class LocalPool:
                              f"(exit code {value})")
         if kind == "error":
             raise _with_remote(value)
-        return str(value)
+        return value
 
     def stop(self, wids: list[int]) -> None:
         """Stop these workers (e.g. more workers than tasks), without waiting: a worker
@@ -223,34 +247,35 @@ class LocalPool:
             self._spill_dir = None
 
     def replace(self, wid: int) -> int:
-        """Start a new worker in place of the dead one ``wid`` and return its id at once.
+        """Start a new worker (same constructor arguments) in place of the dead one
+        ``wid`` and return its id at once.
 
-        Its set-up and load go on while the dispatch collects the other workers' shards:
-        a task submitted to it runs after its load, and if it dies or fails setting up,
-        :meth:`wait` answers that task with ``died`` or ``error``."""
+        Its construction and set-up go on while the caller collects the other workers'
+        results: a call submitted to it runs after its set-up, and if it dies or fails
+        setting up, :meth:`wait` answers that call with ``died`` or ``error``."""
         old = self.workers.pop(wid)
         _end(old.process, 1.0)
         _close(old)
-        new = self._spawn()
-        if self._load_args is not None:
+        new = self._spawn(old.init)
+        if self._setup is not None:
             w = self.workers[new]
             w.loading = True
-            # from a thread: the poses and plan are larger than the socket's buffer, so
-            # sending them blocks until the new worker has set up and reads them
-            w.writer = threading.Thread(target=_write, args=(w.conn, ("load", self._load_args)),
-                                        name=f"vhgen-load-{new}", daemon=True)
+            # from a thread: the set-up inputs are larger than the socket's buffer, so
+            # sending them blocks until the new worker is constructed and reads them
+            w.writer = threading.Thread(target=_write, args=(w.conn, ("setup", self._setup)),
+                                        name=f"vhgen-setup-{new}", daemon=True)
             w.writer.start()
         return new
 
     # -- tasks -----------------------------------------------------------------------
-    def submit(self, wid: int, task: Any, *args: Any) -> None:
-        """Run ``worker.run(*args)`` on worker ``wid``; ``task`` is returned by wait()."""
+    def submit(self, wid: int, task: Any, method: str, *args: Any) -> None:
+        """Call ``method(*args)`` on worker ``wid``; ``task`` is returned by wait()."""
         w = self.workers[wid]
         w.busy = task
         if w.loading:
-            w.deferred = args  # sent by wait() once the load has succeeded
+            w.deferred = (method, args)  # sent by wait() once the set-up has succeeded
         else:
-            self._send(w, "run", args)
+            self._send(w, "call", (method, args))
 
     def wait(self, timeout: float | None = None) -> list[tuple[int, Any, str, Any]]:
         """Block until at least one busy worker answers or dies, or ``timeout`` seconds
@@ -258,9 +283,9 @@ class LocalPool:
         ``ok`` (value: the result), ``died`` (value: the exit code) or ``error`` (value:
         the exception, its ``__cause__`` the worker's traceback).
 
-        A busy replacement answers its load first: a load that succeeded is not
-        reported (the task's run is sent then, its reply comes later); one that died
-        or raised answers the task with ``died`` or ``error``, as :meth:`load` would
+        A busy replacement answers its set-up first: a set-up that succeeded is not
+        reported (the task's call is sent then, its reply comes later); one that died
+        or raised answers the task with ``died`` or ``error``, as :meth:`setup` would
         have raised it."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
@@ -268,8 +293,8 @@ class LocalPool:
             if not busy:
                 return []
             # a dead worker's socket reads as end-of-file: readable, like a reply. A
-            # replacement has one request in flight at a time (its run is sent only after
-            # its load's reply), so each readable socket holds the answer to that one
+            # replacement has one request in flight at a time (its call is sent only
+            # after its set-up's reply), so each readable socket holds the answer to that
             handles = {w.conn: wid for wid, w in busy.items()}
             left = None if deadline is None else max(0.0, deadline - time.monotonic())
             ready = {handles[h] for h in wait(list(handles), left)}  # type: ignore[index]
@@ -279,25 +304,25 @@ class LocalPool:
                 kind, value = self._recv(wid)
                 if w.loading:
                     w.loading = False
-                    if kind == "ok":  # set up and loaded: now the task
-                        self._send(w, "run", w.deferred or ())
+                    if kind == "ok":  # set up: now the task
+                        self._send(w, "call", w.deferred or ("run", ()))
                         w.deferred = None
                         continue
                     w.deferred = None
                 task, w.busy = w.busy, None
                 out.append((wid, task, kind,
                             _with_remote(value) if kind == "error" else value))
-            # a load that succeeded is no answer: wait on, for what time is left
+            # a set-up that succeeded is no answer: wait on, for what time is left
             if out or (not ready and deadline is not None and time.monotonic() >= deadline):
                 return out
 
     # -- pipe ------------------------------------------------------------------------
-    def _send(self, w: _Worker, op: str, args: tuple) -> None:
+    def _send(self, w: _Worker, op: str, payload: tuple) -> None:
         if w.writer is not None:
-            # the load goes first: sent by now (only called once the worker replied or
+            # the set-up goes first: sent by now (only called once the worker replied or
             # for a worker that is not loading)
             w.writer.join()
-        _write(w.conn, (op, args))
+        _write(w.conn, (op, payload))
 
     def _recv(self, wid: int) -> tuple[str, Any]:
         """The worker's next reply, or ``("died", exit code)``; a reply sent just before
@@ -335,13 +360,6 @@ def _end(p: subprocess.Popen, seconds: float) -> None:
         p.wait()
 
 
-@dataclass(frozen=True)
-class _MappedArray:
-    """A stand-in for an array written to ``path`` (.npy), read back memory-mapped."""
-
-    path: str
-
-
 def _remove_stale_spills() -> None:
     """Remove the spill folders of drivers that no longer run (killed before close())."""
     for p in Path(tempfile.gettempdir()).glob(f"{_SPILL_PREFIX}*-*"):
@@ -360,32 +378,41 @@ def _running(pid: int) -> bool:
     return True
 
 
-def _each_array(args: tuple, fn: Any) -> tuple:
-    """``args`` with ``fn`` applied to each top-level value and each value of a top-level
-    dict (where load()'s arrays are)."""
-    return tuple({k: fn(v) for k, v in a.items()} if isinstance(a, dict) else fn(a)
-                 for a in args)
+class _Spiller(pickle.Pickler):
+    """Pickles with every large array written to its own .npy file in ``folder`` (the
+    pickle holds the path)."""
+
+    def __init__(self, f: io.BytesIO, folder: Path):
+        super().__init__(f, protocol=pickle.HIGHEST_PROTOCOL)
+        self.folder = folder
+        self.count = itertools.count()
+
+    def persistent_id(self, obj: Any) -> Any:
+        if not isinstance(obj, np.ndarray) or obj.nbytes < SPILL_BYTES or obj.dtype.hasobject:
+            return None
+        path = self.folder / f"array-{next(self.count)}.npy"
+        np.save(path, obj, allow_pickle=False)
+        return str(path)
 
 
-def _spill(args: tuple, folder: Path) -> tuple:
-    """``args`` with every big array (see :func:`_each_array`) written to ``folder`` and
-    replaced by a :class:`_MappedArray`."""
-    count = itertools.count()
+class _Mapper(pickle.Unpickler):
+    """The inverse of :class:`_Spiller`: each spilled array a read-only memory map."""
 
-    def one(a: Any) -> Any:
-        if not isinstance(a, np.ndarray) or a.nbytes < SPILL_BYTES or a.dtype.hasobject:
-            return a
-        path = folder / f"array-{next(count)}.npy"
-        np.save(path, a, allow_pickle=False)
-        return _MappedArray(str(path))
-
-    return _each_array(args, one)
+    def persistent_load(self, pid: Any) -> Any:
+        return np.load(pid, mmap_mode="r")
 
 
-def _mapped(args: tuple) -> tuple:
-    """The inverse of :func:`_spill` in a worker: read-only memory maps of the files."""
-    return _each_array(args, lambda a: np.load(a.path, mmap_mode="r")
-                       if isinstance(a, _MappedArray) else a)
+def spill_dumps(obj: Any, folder: Path) -> bytes:
+    """``obj`` pickled, with every array of at least :data:`SPILL_BYTES` (anywhere in
+    it: dataclass fields, dicts, lists) written to ``folder`` instead."""
+    f = io.BytesIO()
+    _Spiller(f, folder).dump(obj)
+    return f.getvalue()
+
+
+def _mapped_loads(data: bytes) -> Any:
+    """The inverse of :func:`spill_dumps` in a worker: spilled arrays memory-mapped."""
+    return _Mapper(io.BytesIO(data)).load()
 
 
 def _write(conn: Connection, message: tuple) -> None:

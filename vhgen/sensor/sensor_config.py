@@ -1,5 +1,5 @@
 """A sensor: intrinsics, baseline, the projector's dot pattern, an ordered effect list and
-the output encoding. Pure description (frozen, no caches); :class:`vhgen.sensor.model.
+the output encoding. Pure description (frozen, no caches); :class:`vhgen.sensor.simulator.
 SensorModel` compiles it into runtime stages.
 
 Configs live in ``configs/sensors/``::

@@ -14,9 +14,12 @@ from typing import Any
 import numpy as np
 
 from vhgen.body.shape import ShapeSampler
+from vhgen.camera import CameraConfig
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
-from vhgen.scene.config import (
+from vhgen.scene.geometry import MAX_SCENE_CLASSES, SCENE_CLASSES
+from vhgen.scene.props import PARAMETRIC, load_mesh
+from vhgen.scene.scene_config import (
     BEHIND_M,
     CAMERA_CLEARANCE_M,
     PERSON_CLEARANCE_M,
@@ -24,9 +27,7 @@ from vhgen.scene.config import (
     RoomConfig,
     SceneConfig,
 )
-from vhgen.scene.geometry import MAX_SCENE_CLASSES, SCENE_CLASSES
-from vhgen.scene.props import PARAMETRIC, load_mesh
-from vhgen.sensor.config import SensorConfig
+from vhgen.sensor.sensor_config import SensorConfig
 from vhgen.yamlio import check_keys, find_config, load_yaml
 
 
@@ -62,23 +63,6 @@ def _range(d: dict, key: str, src, prefix: str, default: tuple[float, float], *,
     if (lo is not None and a < lo) or (hi is not None and b > hi):
         raise ConfigError(src, prefix + key, f"[{a}, {b}] is outside [{lo}, {hi}]")
     return (a, b)
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    """Camera placement, sampled per frame: the camera circles the subject's root."""
-
-    distance_m: tuple[float, float] = (2.2, 3.2)
-    height_m: tuple[float, float] = (0.9, 1.3)
-    yaw_deg: tuple[float, float] = (-60.0, 60.0)  # 0 = camera in front of the subject
-    look_at_height_m: tuple[float, float] = (0.85, 1.0)
-    near_m: float = 0.1
-    far_m: float = 20.0
-    # a mounted camera (set by pitch_deg or a preset): level, turned towards the subject,
-    # tilted down by pitch (degrees, + = towards the floor) and rolled about its axis;
-    # look_at_height_m is then unused. None = the camera looks at the subject (above).
-    pitch_deg: tuple[float, float] | None = None
-    roll_deg: tuple[float, float] = (0.0, 0.0)
 
 
 # How users mount the camera: a Kinect on top of a TV, a robot's head camera.

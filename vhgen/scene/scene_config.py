@@ -1,4 +1,4 @@
-"""The ``scene:`` section of a job config (frozen; parsed by :mod:`vhgen.config`).
+"""The ``scene:`` section of a job config (frozen; parsed by :mod:`vhgen.job_config`).
 
 Absent section = today's scene: one person, no floor, no walls (existing configs keep
 their bytes)."""
