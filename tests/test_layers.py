@@ -20,7 +20,8 @@ ROOT = Path(vhgen.__file__).parent
 LAYERS: list[tuple[str, ...]] = [
     ("errors", "yamlio"),
     ("rotations", "camera", "assets"),
-    ("mocap", "body", "sensor"),
+    ("mocap", "body", "sensor", "depthfile"),
+    ("realism",),
     ("scene",),
     ("config", "cliargs"),
     ("store",),
