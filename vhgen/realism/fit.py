@@ -70,11 +70,14 @@ def planes_frame(intr: Intrinsics, depths: Sequence[float] = (1.0, 1.4, 1.8, 2.2
     return z
 
 
-def step_frame(intr: Intrinsics, near: float = 1.2, far: float = 3.0) -> np.ndarray:
-    """(H, W) float64 metres: a wall at ``far`` with a box at ``near`` covering the middle
-    half of the image (vertical edges on both sides)."""
+def step_frame(intr: Intrinsics, nears: Sequence[float] = (0.9, 1.3, 1.8, 2.5),
+               far: float = 3.6) -> np.ndarray:
+    """(H, W) float64 metres: a wall at ``far`` with one box per depth of ``nears`` side
+    by side (vertical edges on both sides of each, jumps of several sizes)."""
     z = np.full((intr.height, intr.width), far)
-    z[intr.height // 6: -intr.height // 6, intr.width // 3: 2 * intr.width // 3] = near
+    edges = np.linspace(0, intr.width, 2 * len(nears) + 2).astype(int)
+    for k, near in enumerate(nears):
+        z[intr.height // 6: -intr.height // 6, edges[2 * k + 1]:edges[2 * k + 2]] = near
     return z
 
 
@@ -119,12 +122,26 @@ def _step_coeff(st: Sequence[FrameStats]) -> float:
 
 
 def _band(st: Sequence[FrameStats], side: str) -> tuple[float, int]:
-    """Median f*b (px m) of the edges of ``side`` that show a hole, and their count."""
+    """f*b (px m) of the edges of ``side`` that show a hole, and their count: the slope of
+    the band width against the jump 1/z_near - 1/z_far (least squares with an intercept,
+    refitted without residuals beyond 3 MAD), since effects that fill or widen a band by a
+    few pixels whatever the jump (splats, lateral noise) move the intercept, not the
+    slope. NaN with fewer than 3 edges or jumps of one size only."""
     j = np.concatenate([getattr(s, f"{side}_jump") for s in st])
     w = np.concatenate([getattr(s, f"{side}_width") for s in st])
     hole = w > 0
-    return (float(np.median(w[hole] / j[hole])) if hole.any() else float("nan"),
-            int(hole.sum()))
+    j, w = j[hole], w[hole]
+    if len(j) < 3 or np.ptp(j) < 1e-3:
+        return float("nan"), int(len(j))
+    keep = np.ones(len(j), bool)
+    slope = float("nan")
+    for _ in range(3):
+        a = np.stack([j[keep], np.ones(int(keep.sum()))], -1)
+        (slope, icpt), *_ = np.linalg.lstsq(a, w[keep], rcond=None)
+        r = w - (slope * j + icpt)
+        mad = float(np.median(np.abs(r[keep] - np.median(r[keep])))) + 1e-9
+        keep = np.abs(r) <= 3 * 1.4826 * mad + 0.5
+    return float(slope), int(len(j))
 
 
 def _calibrate(cfg: SensorConfig, target: float, measure, make, lo: float, hi: float,
@@ -190,9 +207,9 @@ def fit_sensor(real: Sequence[FrameStats], intr: Intrinsics, base: SensorConfig,
             off = _calibrate(cfg, ob, lambda c: _band([simulate_stats(c, step_frame(intr))],
                                                       "other")[0], make_reg, 0.0, 0.2)
             cfg = make_reg(cfg, off)
-            rep.fitted["registration.ir_offset_m"] = (-round(off, 4), f"band on the other "
-                                                      f"side f*b = {ob:.1f} px m ({n_other} "
-                                                      "edges)")
+            rep.fitted["registration.ir_offset_m"] = (
+                -round(off, 4), f"band on the other side: width / jump slope {ob:.1f} px m "
+                                f"({n_other} edges)")
         else:
             rep.kept["registration.ir_offset_m"] = f"only {n_other} edges with a hole on the " \
                                                    "other side of near objects"
@@ -208,8 +225,8 @@ def fit_sensor(real: Sequence[FrameStats], intr: Intrinsics, base: SensorConfig,
                                                     "shadow")[0], make_base, 0.005, 0.3)
         # keep the disparity steps and noise in depth what they were at the old baseline
         cfg = _rescale_disparity(cfg, b_fit)
-        rep.fitted["baseline_m"] = (round(b_fit, 4), f"shadow band f*b = {sb:.1f} px m "
-                                                     f"({n_sh} edges)")
+        rep.fitted["baseline_m"] = (round(b_fit, 4), f"shadow band: width / jump slope "
+                                                     f"{sb:.1f} px m ({n_sh} edges)")
     else:
         rep.kept["baseline_m"] = f"only {n_sh} edges with a shadow hole"
 
