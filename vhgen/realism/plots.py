@@ -29,10 +29,11 @@ def plot_realism(path: str | Path, sets: Mapping[str, Sequence[FrameStats]]) -> 
     ax = ax.ravel()
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     names = list(sets)
+    step_top = 1.0
     for k, (name, st) in enumerate(sets.items()):
         c = colors[k % len(colors)]
         ax[0].hist(_cat(st, "valid_fraction"), bins=20, range=(0, 1), alpha=0.5, color=c,
-                   label=name)
+                   density=True, label=name)
         ax[1].hist(_cat(st, "depth_m"), bins=60, range=(0, 10), density=True, alpha=0.5,
                    color=c, histtype="stepfilled", label=name)
         far = _cat(st, "farthest_m")
@@ -53,14 +54,16 @@ def plot_realism(path: str | Path, sets: Mapping[str, Sequence[FrameStats]]) -> 
         ok = np.isfinite(ps)
         sel = np.flatnonzero(ok)[:: max(1, int(ok.sum()) // 3000)]
         ax[6].plot(pz[sel], ps[sel], ".", ms=2, alpha=0.4, color=c, label=name)
+        if ok.any():  # a few patches straddle two surfaces: keep the axis on the steps
+            step_top = max(step_top, float(np.percentile(ps[ok], 99)))
         b = np.mean(np.stack([s.border_px for s in st]), 0) if st else np.zeros(4)
         ax[7].bar(np.arange(4) + 0.8 * k / len(names), b, width=0.8 / len(names), color=c,
                   label=name)
         holes_pf = [len(s.hole_areas) for s in st]
-        ax[8].hist(holes_pf, bins=20, alpha=0.5, color=c, label=name)
+        ax[8].hist(holes_pf, bins=20, alpha=0.5, color=c, density=True, label=name)
     titles = ["valid-pixel fraction per frame", "depth of valid pixels (m); ticks: p99.9",
               "hole width (px) beside edges vs 1/z_near - 1/z_far (1/m)",
-              "hole blob size (log10 px)", "speckles (valid islands <= 200 px) per frame",
+              "hole blob size (log10 px), density", "speckles (valid islands <= 200 px) per frame",
               "axial noise on planar patches (mm) vs depth (m)",
               "quantisation step in patches (mm) vs depth (m)",
               "border band (px): left, right, top, bottom", "hole blobs per frame"]
@@ -68,6 +71,7 @@ def plot_realism(path: str | Path, sets: Mapping[str, Sequence[FrameStats]]) -> 
         a.set_title(t, fontsize=10)
         a.legend(fontsize=7)
     ax[2].set_xlim(0, 1.5)
+    ax[6].set_ylim(0, step_top * 1.1)
     ax[2].set_ylim(0, 60)
     ax[4].set_xticks(range(len(names)), names, fontsize=7, rotation=15)
     ax[7].set_xticks(range(4), ["left", "right", "top", "bottom"])
