@@ -103,14 +103,21 @@ def test_pcd_extra_fields_counts_and_types(tmp_path):
     body = np.array([len(comp), len(soa)], "<u4").tobytes() + comp
     (tmp_path / "c.pcd").write_bytes((head + "DATA binary_compressed\n").encode() + body)
     np.testing.assert_array_equal(read_depth(tmp_path / "c.pcd").depth_mm, d)
-    # and as text (0.6-style: COLUMNS, no VIEWPOINT, no COUNT means one each is wrong
-    # here, so COUNT stays)
+    # and as text, 0.6-style (VERSION .6, COLUMNS for FIELDS, no VIEWPOINT)
     rows = [" ".join(["4294967295", repr(float(r["x"])), "0.5 0.5 0.5", repr(float(r["y"])),
                       "-3", repr(float(r["z"]))]) for r in rec]
     txt = head.replace("VERSION 0.7", "VERSION .6").replace("FIELDS", "COLUMNS").replace(
         "VIEWPOINT 0 0 0 1 0 0 0\n", "")
     (tmp_path / "a.pcd").write_text(txt + "DATA ascii\n" + "\n".join(rows) + "\n")
     np.testing.assert_array_equal(read_depth(tmp_path / "a.pcd").depth_mm, d)
+
+
+def test_header_without_count_and_points(tmp_path):
+    """Old headers may omit COUNT (one each) and POINTS (WIDTH * HEIGHT)."""
+    raw = write_pcd(tmp_path / "f.pcd", _depth(4), INTR, encoding="binary").read_bytes()
+    raw = raw.replace(b"COUNT 1 1 1\n", b"").replace(b"POINTS 3072\n", b"")
+    (tmp_path / "g.pcd").write_bytes(raw)
+    np.testing.assert_array_equal(read_depth(tmp_path / "g.pcd").depth_mm, _depth(4))
 
 
 def test_given_intrinsics_win(tmp_path):
