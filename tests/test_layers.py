@@ -25,7 +25,8 @@ ROOT = Path(vhgen.__file__).parent
 LAYERS: list[tuple[str, ...]] = [
     ("errors", "yamlio", "version"),
     ("rotations", "camera", "assets", "executor"),
-    ("mocap", "body", "sensor"),
+    ("mocap", "body", "sensor", "depthfile"),
+    ("realism",),
     ("scene",),
     ("job_config", "cliargs"),
     ("store",),

@@ -308,9 +308,33 @@ def _cmd_bench_fidelity(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench_realism(args: argparse.Namespace) -> int:
+    from vhgen.bench.realism import bench_realism
+
+    res = bench_realism(args.real, args.store, args.out, max_frames=args.max_frames,
+                        fx=args.fx, warn=lambda m: print(f"vhgen: warning: {m}",
+                                                         file=sys.stderr))
+    print(res["table"])
+    print(f"wrote {args.out}/realism.json, table.txt, realism.png")
+    return 0
+
+
 def _add_bench(sub: _Sub) -> None:
     bn = sub.add_parser("bench", help="benchmarks")
     bsub = bn.add_subparsers(dest="bench_cmd", required=True)
+    re_ = _leaf(bsub, "realism", "statistics of real depth frames beside vhgen stores' "
+                                 "frames, one distance per statistic", _cmd_bench_realism)
+    re_.add_argument("real", nargs="+", type=A.text("path"),
+                     help="real depth frames: organized .pcd or 16-bit mm .png files, or "
+                          "folders of them (a bad file is one warning line and is skipped)")
+    re_.add_argument("--store", action="append", required=True, type=A.existing_path(),
+                     help="a vhgen store to compare (repeat for several: one column each)")
+    re_.add_argument("--out", type=A.output_path(), default="out/realism",
+                     help="folder for realism.json, table.txt, realism.png")
+    re_.add_argument("--max-frames", type=A.int_range(1),
+                     help="only the first N frames of each store")
+    re_.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                     help="focal length (px) of real PNG frames (PCD files carry theirs)")
     fi = _leaf(bsub, "fidelity", "sensor configs against the structured-light reference: "
                                  "error and ms per frame", _cmd_bench_fidelity)
     fi.add_argument("--out", type=A.output_path(), default="out/fidelity",
@@ -323,6 +347,41 @@ def _add_bench(sub: _Sub) -> None:
     fi.add_argument("--motion", type=A.existing_file(".bvh"),
                     help="BVH for the human scene (default: the demo clip)")
     fi.add_argument("--assets", type=A.existing_path(), help="MPFB2 asset folder")
+
+
+# -- sensor fit --------------------------------------------------------------------------
+
+def _cmd_sensor_fit(args: argparse.Namespace) -> int:
+    from vhgen.realism.fit import fit_files
+
+    rep = fit_files(args.real, args.output, base=args.base, name=args.name, fx=args.fx,
+                    warn=lambda m: print(f"vhgen: warning: {m}", file=sys.stderr))
+    print("fitted:")
+    for k, (v, why) in rep.fitted.items():
+        print(f"  {k} = {v}  ({why})")
+    print(f"kept from {args.base} (could not be estimated from these frames):")
+    for k, why in rep.kept.items():
+        print(f"  {k}: {why}")
+    print(f"wrote {args.output} (loads and runs: sensor {rep.config.name!r})")
+    return 0
+
+
+def _add_sensor(sub: _Sub) -> None:
+    se = sub.add_parser("sensor", help="sensor models")
+    ssub = se.add_subparsers(dest="sensor_cmd", required=True)
+    f = _leaf(ssub, "fit", "a sensor config estimated from real depth frames of static "
+                           "scenes (no labels)", _cmd_sensor_fit)
+    f.add_argument("real", nargs="+", type=A.text("path"),
+                   help="real depth frames: organized .pcd or 16-bit mm .png files, or "
+                        "folders of them")
+    f.add_argument("-o", "--output", required=True, type=A.output_path(".yaml", ".yml"),
+                   help="sensor YAML to write")
+    f.add_argument("--base", type=A.config_name("sensors"), default="kinect_v1_full",
+                   help="preset whose values the frames cannot determine are kept "
+                        "(default kinect_v1_full)")
+    f.add_argument("--name", type=A.text("name"), help="sensor name (default: file stem)")
+    f.add_argument("--fx", type=A.float_range(0, lo_open=True),
+                   help="focal length (px) of PNG frames (PCD files carry theirs)")
 
 
 # -- preview, info -----------------------------------------------------------------------
@@ -398,8 +457,8 @@ def _add_forest(sub: _Sub) -> None:
 
 # Each entry adds one subcommand (its parser, arguments and function).
 SUBCOMMANDS: list[Callable[[_Sub], None]] = [
-    _add_assets, _add_generate, _add_corpus, _add_avatar, _add_bench, _add_preview, _add_info,
-    _add_inspect, _add_forest,
+    _add_assets, _add_generate, _add_corpus, _add_avatar, _add_bench, _add_sensor,
+    _add_preview, _add_info, _add_inspect, _add_forest,
 ]
 
 

@@ -51,3 +51,12 @@ class StoreError(VhgenError):
 
 class ForestError(VhgenError):
     """A forest file, training set or forest command argument that cannot be used."""
+
+
+class DepthFileError(VhgenError):
+    """A depth file (PCD, PNG) that cannot be read as a depth image; names the file."""
+
+    def __init__(self, path: str | Path, message: str):
+        self.path = str(path)
+        self.message = message
+        super().__init__(f"{self.path}: {message}")

@@ -52,6 +52,21 @@ def test_train_eval_label_export(tmp_path, capsys, boxes_store):
                        str(tmp_path / "lab.png"))
     assert code == 0
     np.testing.assert_array_equal(np.array(Image.open(tmp_path / "lab.png")), lab[0])
+    # the same frame as an organized PCD cloud (OpenNI's NaN for no measurement): the same
+    # labels, and its recovered focal length is checked against the forest's
+    from vhgen.camera import Intrinsics
+    from vhgen.depthfile import write_pcd
+
+    h, w = d[0].shape
+    pcd = write_pcd(tmp_path / "depth.pcd", d[0], Intrinsics(w, h, 525.0, 525.0, 39.5, 29.5))
+    code, out, err = run(capsys, "forest", "label", str(forest), str(pcd), "-o",
+                         str(tmp_path / "lab2.png"))
+    assert code == 0 and err == ""
+    np.testing.assert_array_equal(np.array(Image.open(tmp_path / "lab2.png")), lab[0])
+    far = write_pcd(tmp_path / "f571.pcd", d[0], Intrinsics(w, h, 571.0, 571.0, 39.5, 29.5))
+    code, _, err = run(capsys, "forest", "label", str(forest), str(far), "-o",
+                       str(tmp_path / "lab3.png"))
+    assert code == 0 and "fx=571 px differs" in err
 
     code, out, _ = run(capsys, "forest", "export", str(forest), "--format", "pcl", "-o",
                        str(tmp_path / "pcl"))
@@ -94,6 +109,9 @@ def test_cli_errors(tmp_path, capsys, boxes_store):
     Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(rgb)
     one_line_error(capsys, "forest", "label", out, str(rgb), "-o", str(tmp_path / "x.png"),
                    match="16-bit depth PNG")
+    (tmp_path / "bad.pcd").write_bytes(b"VERSION 0.7\nFIELDS x y\n")
+    one_line_error(capsys, "forest", "label", out, str(tmp_path / "bad.pcd"), "-o",
+                   str(tmp_path / "x.png"), match="bad.pcd: not a PCD file")
     wide = tmp_path / "wide.png"
     Image.fromarray(np.full((2, 40000), 1500, np.uint16)).save(wide)
     one_line_error(capsys, "forest", "label", out, str(wide), "-o", str(tmp_path / "x.png"),

@@ -101,43 +101,34 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
-def read_depth_png(path: str) -> Any:
-    """A 16-bit single-channel PNG of millimetres -> (H, W) uint16; ForestError otherwise."""
-    import numpy as np
-    from PIL import Image, UnidentifiedImageError
-
-    p = Path(path)
-    if not p.is_file():
-        raise ForestError(f"{p}: no such depth image")
-    try:
-        with Image.open(p) as im:
-            mode = im.mode
-            arr = np.array(im)
-    except (UnidentifiedImageError, OSError) as e:
-        raise ForestError(f"{p}: not an image ({e})") from None
-    if arr.ndim != 2 or mode not in ("I;16", "I;16B", "I;16L", "I"):
-        raise ForestError(f"{p}: expected a single-channel 16-bit depth PNG in millimetres, "
-                          f"got mode {mode} shape {arr.shape}")
+def read_label_input(path: str) -> Any:
+    """A depth image for ``forest label`` (PCD or 16-bit mm PNG, through
+    :func:`vhgen.depthfile.read_depth`) -> DepthFrame; ForestError when it is larger than
+    forest inference takes. A malformed file is its DepthFileError (one line)."""
+    from vhgen.depthfile import read_depth
     from vhgen.forest.kernel import MAX_SIDE
 
-    if max(arr.shape) > MAX_SIDE:
-        raise ForestError(f"{p}: {arr.shape[1]}x{arr.shape[0]} px; forest inference takes "
-                          f"images up to {MAX_SIDE} px a side")
-    if arr.min(initial=0) < 0 or arr.max(initial=0) > 65535:
-        raise ForestError(f"{p}: depth values outside 0..65535 mm")
-    return arr.astype(np.uint16)
+    frame = read_depth(path)
+    h, w = frame.depth_mm.shape
+    if max(h, w) > MAX_SIDE:
+        raise ForestError(f"{path}: {w}x{h} px; forest inference takes images up to "
+                          f"{MAX_SIDE} px a side")
+    return frame
 
 
 def _cmd_label(args: argparse.Namespace) -> int:
+    import numpy as np
     from PIL import Image
 
     from vhgen.forest.evaluate import palette_for
     from vhgen.forest.trees import Predictor
 
     forest = load_any_forest(args.forest)
-    depth = read_depth_png(args.depth)
-    check_focal(forest, args.fx, args.depth)
-    labels = Predictor(forest).predict(depth)
+    frame = read_label_input(args.depth)
+    fx = args.fx if args.fx is not None else (
+        frame.intrinsics.fx if frame.intrinsics is not None else None)
+    check_focal(forest, fx, args.depth)
+    labels = Predictor(forest).predict(np.asarray(frame.depth_mm))
     img = Image.fromarray(labels, mode="P")
     pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
     img.putpalette(pal.ravel().tolist())
@@ -214,15 +205,17 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="training focal length of PCL trees (for the focal-length check)")
     e.set_defaults(func=_cmd_eval)
 
-    lb = fsub.add_parser("label", help="label a 16-bit millimetre depth PNG")
+    lb = fsub.add_parser("label", help="label a depth image (organized PCD or 16-bit mm PNG)")
     lb.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
-    lb.add_argument("depth", type=A.existing_file(".png"),
-                    help="16-bit PNG, millimetres, 0 = no measurement")
+    lb.add_argument("depth", type=A.existing_file(".png", ".pcd"),
+                    help="organized PCD cloud (ascii, binary or binary_compressed; NaN = no "
+                         "measurement; its focal length is recovered) or 16-bit PNG, "
+                         "millimetres, 0 = no measurement")
     lb.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
                     help="label PNG (palette; value = class)")
     lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
                     help="focal length of the depth camera (px): warn if it differs from "
-                         "the training one")
+                         "the training one (default for a PCD: the recovered one)")
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")

@@ -140,10 +140,13 @@ class CorrelationWindow(EffectSpec, name="correlation_window"):
 @dataclass(frozen=True)
 class Dropout(EffectSpec, name="dropout"):
     """E8: no return at grazing incidence (angle to the ray above ``max_angle_deg``) and,
-    BlenSor's rule, from dark or far surfaces: invalid if albedo < 0.01 + 0.16 r (r in m)."""
+    BlenSor's rule, from dark or far surfaces: invalid if albedo < 0.01 + 0.16 r (r in m).
+    ``range_rule: false`` drops BlenSor's rule (with albedo 1 it is a hard cut at a range
+    of 6.19 m, which OpenNI depth runs past): ``range_dropout`` models the loss at range."""
 
     max_angle_deg: float = number(80.0, 0.0, 90.0, unit="deg")
     albedo: float = number(1.0, 0.0, 1.0)
+    range_rule: bool = flag(True)
 
     READS = MEASURE | {"incidence"}
     WRITES = MEASURE
@@ -179,3 +182,59 @@ class StructuredLight(EffectSpec, name="structured_light"):
     @property
     def random(self) -> bool:
         return self.ir_noise
+
+
+@dataclass(frozen=True)
+class RangeDropout(EffectSpec, name="range_dropout"):
+    """Returns fading with range instead of a hard gate: a pixel at planar depth z is lost
+    with probability p(z) = clip((z - z_start) / (z_end - z_start), 0, 1) ** ``power``,
+    decided per ``blob_px`` x ``blob_px`` cell of the image (one uniform draw per cell,
+    compared with each pixel's own p), so far surfaces break up into blobs, as real ones
+    do, rather than salt and pepper. Holes are counted under ``range``."""
+
+    z_start_m: float = number(4.0, 0.0, 60.0, unit="m")
+    z_end_m: float = number(10.0, 0.01, 65.0, unit="m")
+    power: float = number(2.0, 0.1, 10.0)
+    blob_px: int = number(4, 1, 64, unit="px", integer=True)
+
+    RANDOM = True
+    READS = MEASURE
+    WRITES = MEASURE
+
+    def check(self) -> None:
+        if self.z_start_m >= self.z_end_m:
+            raise SpecError("z_start_m", f"must be below z_end_m ({self.z_end_m})")
+
+
+@dataclass(frozen=True)
+class Registration(EffectSpec, name="registration"):
+    """Depth registered to another camera (OpenNI's depth-to-RGB registration), as seen in
+    that camera's image: the sensor's camera is the RGB camera, the IR camera that measured
+    the depth sits ``ir_offset_m`` from it along x (negative: on the side away from the
+    projector, as on the Kinect). Pixels the IR camera could not see (hidden behind a
+    nearer surface from its viewpoint: a band of f |ir_offset| (1/z_near - 1/z_far) px on
+    the side of near objects away from the projector's shadow) and the band along the
+    image border that lies outside the IR camera's view (``left_px`` ... ``bottom_px``)
+    have no measurement. Holes are counted under ``registration``."""
+
+    ir_offset_m: float = number(-0.025, -0.5, 0.5, unit="m")
+    left_px: int = number(0, 0, 1000, unit="px", integer=True)
+    right_px: int = number(0, 0, 1000, unit="px", integer=True)
+    top_px: int = number(0, 0, 1000, unit="px", integer=True)
+    bottom_px: int = number(0, 0, 1000, unit="px", integer=True)
+
+    READS = MEASURE
+    WRITES = MEASURE
+
+
+@dataclass(frozen=True)
+class SpeckleFilter(EffectSpec, name="speckle_filter"):
+    """Isolated measurements removed: every 4-connected component of valid pixels of at
+    most ``max_area_px`` pixels becomes a hole (cause ``speckle``). Real OpenNI frames hold
+    no such islands (the bench statistic ``speckles``), while per-pixel effects leave
+    single valid pixels among holes."""
+
+    max_area_px: int = number(200, 1, 100000, unit="px", integer=True)
+
+    READS = MEASURE
+    WRITES = MEASURE

@@ -17,7 +17,10 @@ from vhgen.sensor.effects import (
     LateralNoise,
     LensDistortion,
     ProjectorShadow,
+    RangeDropout,
     RangeGate,
+    Registration,
+    SpeckleFilter,
 )
 from vhgen.sensor.kernels import (
     add_noise_drop_inplace,
@@ -211,7 +214,7 @@ class DropoutStage(Stage[Dropout], spec=Dropout):
             raise ValueError("dropout needs the incidence")
         z = s.to_depth()
         # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16, r = z |ray|
-        r_max = (p.albedo - 0.01) / 0.16
+        r_max = (p.albedo - 0.01) / 0.16 if p.range_rule else np.inf
         cos_min = np.cos(np.deg2rad(p.max_angle_deg))
         inc = np.ascontiguousarray(s.incidence)
         s.record(lambda hole: dropout_inplace(z, s.valid, inc, s.ray_norm,
@@ -225,3 +228,47 @@ class DisparityQuantisationStage(Stage[DisparityQuantisation], spec=DisparityQua
         lost = quantise_inplace(d, s.valid, p.step_px)
         if lost.any():
             s.holes["noise"] = s.hole("noise") | lost
+
+
+class RangeDropoutStage(Stage[RangeDropout], spec=RangeDropout):
+    def apply(self, s: SensorState, rng: np.random.Generator | None) -> None:
+        p = self.spec
+        rng = _need_rng(rng)
+        z = s.to_depth()
+        h, w = z.shape
+        b = p.blob_px
+        cells = rng.random(((h + b - 1) // b, (w + b - 1) // b))
+        u = np.repeat(np.repeat(cells, b, 0), b, 1)[:h, :w]
+        frac = np.clip((z - p.z_start_m) / (p.z_end_m - p.z_start_m), 0.0, 1.0)
+        s.invalidate(s.valid & (u < frac ** p.power), "range")
+
+
+class RegistrationStage(Stage[Registration], spec=Registration):
+    def apply(self, s: SensorState, rng: np.random.Generator | None) -> None:
+        p = self.spec
+        h, w = s.valid.shape
+        if p.ir_offset_m != 0.0:
+            d = s.to_disparity()
+            # disparity between this camera and the IR camera: f |ir_offset| / z
+            d_ir = np.ascontiguousarray(d * (abs(p.ir_offset_m) / s.baseline_m))
+            s.invalidate(screen_space_shadow(d_ir, s.valid, p.ir_offset_m > 0), "registration")
+        band = np.zeros((h, w), bool)
+        band[:, :min(p.left_px, w)] = True
+        band[:, w - min(p.right_px, w):] = True
+        band[:min(p.top_px, h)] = True
+        band[h - min(p.bottom_px, h):] = True
+        if band.any():
+            s.invalidate(band, "registration")
+
+
+class SpeckleFilterStage(Stage[SpeckleFilter], spec=SpeckleFilter):
+    def apply(self, s: SensorState, rng: np.random.Generator | None) -> None:
+        from scipy import ndimage
+
+        lab, n = ndimage.label(s.valid, structure=ndimage.generate_binary_structure(2, 1))
+        if not n:
+            return
+        area = np.bincount(lab.reshape(-1), minlength=n + 1)
+        small = area <= self.spec.max_area_px
+        small[0] = False
+        s.invalidate(small[lab], "speckle")

@@ -20,7 +20,7 @@ from vhgen.sensor.kernels import invert_inplace, remove_pixels
 
 # hole causes of the shipped effects (an added effect may record its own)
 HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",
-               "matching")
+               "matching", "registration", "speckle")
 
 
 NORMAL_TABLE_FILE = "normal_table_v1.npy"
