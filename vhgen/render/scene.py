@@ -12,8 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vhgen.body.garments import hand_press
 from vhgen.body.model import Body
-from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
+from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, HandPress, View
 from vhgen.scene.description import FrameDescription
 from vhgen.scene.geometry import PERSON, StaticMesh
 
@@ -46,6 +47,21 @@ def merge_static(meshes: tuple[StaticMesh, ...] | list[StaticMesh]
             np.concatenate([np.asarray(m.face_classes, np.uint8) for m in meshes]))
 
 
+def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
+    """Put a body on the GPU; a dressed one (:mod:`vhgen.body.outfit`) with its garment
+    offsets, its hands and its triangles' own scene classes (anything with a body's
+    arrays will do: the dressed ones are optional)."""
+    offsets = getattr(body, "offsets", None)
+    classes = getattr(body, "face_classes", None)
+    if offsets is None:
+        return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
+                               body.face_labels, body.num_bones, face_classes=classes)
+    return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
+                           body.face_labels, body.num_bones, face_classes=classes,
+                           offsets=offsets, press=body.press,
+                           hands=HandPress(**hand_press(body.rig)))
+
+
 class SceneRenderer:
     """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
     last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU)."""
@@ -62,9 +78,7 @@ class SceneRenderer:
         for a in need:  # most recently used at the end
             mesh = self._meshes.pop(a, None)
             if mesh is None:
-                b = self.body_of(a)
-                mesh = self.renderer.upload(b.vertices, b.faces, b.joints, b.weights,
-                                            b.face_labels, b.num_bones)
+                mesh = upload_body(self.renderer, self.body_of(a))
             self._meshes[a] = mesh
         # the last len(need) entries are this frame's: only older ones go
         while len(self._meshes) > max(MAX_RESIDENT_AVATARS, len(need)):

@@ -7,12 +7,51 @@ uniform mat4 projection;
 in vec3 in_position;
 in ivec4 in_joints;
 in vec4 in_weights;
+#ifdef GARMENTS
+// A dressed body: in_position is the skin, in_offset.xyz how far the garment over it
+// lies out (rest pose), in_offset.w the bits of the hands that may press it (1 the left,
+// 2 the right). Near a hand's palm the garment is pressed towards the skin, no further
+// than the hand's underside: a hand resting on a coat lies on it, not inside it. A hand
+// is a swept ellipse: the segment press_a -> press_b (camera space), half thickness
+// press_a.w across the palm and press_b.w times that across its width (press_lateral).
+in vec4 in_offset;
+uniform vec4 press_a[2];
+uniform vec4 press_b[2];
+uniform vec3 press_lateral[2];
+
+float hand_distance(vec3 p, int k) {
+    vec3 a = press_a[k].xyz;
+    vec3 ab = press_b[k].xyz - a;
+    float s = clamp(dot(p - a, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
+    vec3 q = p - (a + s * ab);
+    float across = dot(q, press_lateral[k]);
+    vec3 normal = q - across * press_lateral[k];
+    return sqrt(dot(normal, normal) + across * across / (press_b[k].w * press_b[k].w));
+}
+#endif
 
 out float v_depth;
 out vec3 v_cam;
 
 void main() {
+#ifdef GARMENTS
+    vec3 cam;
+    vec3 off;
+    skin_offset(in_position, in_offset.xyz, in_joints, in_weights, cam, off);
+    float t = length(in_offset.xyz);
+    if (t > 0.0) {
+        int bits = int(in_offset.w + 0.5);
+        float s = 1.0;
+        for (int k = 0; k < 2; ++k) {
+            if ((bits & (1 << k)) != 0) {
+                s = min(s, clamp((hand_distance(cam, k) - press_a[k].w) / t, 0.0, 1.0));
+            }
+        }
+        cam += s * off;
+    }
+#else
     vec3 cam = skin_position(in_position, in_joints, in_weights);
+#endif
     v_depth = cam.z;  // planar depth, perspective-correctly interpolated
     v_cam = cam;
     gl_Position = projection * vec4(cam, 1.0);
