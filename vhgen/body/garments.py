@@ -37,14 +37,11 @@ from vhgen.body.chart import (
     BodyChart,
     smooth,
 )
+from vhgen.body.contact import PRESS_LEFT, PRESS_RIGHT
 
 ARMS = (ARM_L, ARM_R, HAND_L, HAND_R)
 LEGS = (LEG_L, LEG_R)
 FEET = (FOOT_L, FOOT_R)
-# bits of the per-vertex press mask: which of the person's own hands (and forearms) may
-# press a garment in towards the skin (see vhgen.render.renderer: a hand resting on a coat
-# lies on the coat, not inside it); a sleeve is never pressed by its own hand
-PRESS_LEFT, PRESS_RIGHT = 1, 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,8 +184,9 @@ def displacement(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
 
 
 def press_mask(chart: BodyChart) -> np.ndarray:
-    """(V,) uint8 bits: which hand (:data:`PRESS_LEFT`, :data:`PRESS_RIGHT`) may press
-    the garment at a vertex towards the skin: any but its own arm's."""
+    """(V,) uint8 bits: which hand (:data:`~vhgen.body.contact.PRESS_LEFT`,
+    :data:`~vhgen.body.contact.PRESS_RIGHT`) may press the garment at a vertex towards
+    the skin (:mod:`vhgen.body.contact`): any but its own arm's."""
     r = chart.region
     mask = np.full(len(r), PRESS_LEFT | PRESS_RIGHT, np.uint8)
     mask[np.isin(r, (ARM_L, HAND_L))] = PRESS_RIGHT
@@ -196,27 +194,3 @@ def press_mask(chart: BodyChart) -> np.ndarray:
     mask[r == HEAD] = PRESS_LEFT | PRESS_RIGHT
     return mask
 
-
-def hand_press(rig) -> dict[str, np.ndarray]:
-    """The two hands (left, right) as the renderer presses garments with them, rest pose:
-    ``bones`` (2,) int, the segment ``a`` -> ``b`` (2, 3) from the heel of the palm to the
-    middle of the fingers, the unit ``lateral`` (2, 3) across the palm (towards the
-    thumb), the half thickness ``radius`` (2,) and ``width``, half width over half
-    thickness (2,); sized by each hand's length (wrist to fingertip), so a child's hands
-    press less than a man's."""
-    out: dict[str, list] = {k: [] for k in ("bones", "a", "b", "lateral", "radius", "width")}
-    for s, t in (("Left", "L"), ("Right", "R")):
-        wrist = rig.heads[rig.index(f"{s}Hand")]
-        tip = rig.tails[rig.index(f"{s}HandFinger1")]
-        thumb = rig.heads[rig.index(f"{t}Thumb")]
-        axis = tip - wrist
-        length = float(np.linalg.norm(axis))
-        d = axis / length
-        lat = (thumb - wrist) - d * float(np.dot(thumb - wrist, d))
-        out["bones"].append(rig.index(f"{s}Hand"))
-        out["a"].append(wrist + 0.2 * axis)
-        out["b"].append(wrist + 0.75 * axis)
-        out["lateral"].append(lat / max(float(np.linalg.norm(lat)), 1e-9))
-        out["radius"].append(0.16 * length)  # ~2 cm for a 12.5 cm hand
-        out["width"].append(2.3)  # ~4.5 cm to each side
-    return {k: np.asarray(v) for k, v in out.items()}

@@ -105,9 +105,13 @@ def hair_parts(fit: Fit, guide: np.ndarray, hair: dict) -> list[Part]:
         length, r = hair["length_m"], hair["radius_m"]
         root = center + np.array([0.0, 0.55 * (top - center[1]), -radius - 0.3 * r])
         down = np.array([0.0, -1.0, -0.12])
-        m = frame(root + down / np.linalg.norm(down) * (length / 2), down, [0, 0, -1.0])
-        return [rigid_part("hair:ponytail", ellipsoid(np.array([r, length / 2, r * 0.8]), m),
-                           head_w, labels)]
+        down = down / np.linalg.norm(down)
+        v, f = ellipsoid(np.array([r, length / 2, r * 0.8]),
+                         frame(root + down * (length / 2), down, [0, 0, -1.0]))
+        # turns with the head at the tie, rests on the neck and back towards its end
+        a = 0.7 * np.clip((v - root) @ down / length, 0.0, 1.0)[:, None]
+        w = (1 - a) * head_w + a * fit.nearest_weights(v, (NECK, TORSO), k=6)
+        return [Part("hair:ponytail", v, f, w, labels)]
     if hair["kind"] == "bun":
         r = hair["radius_m"]
         at = center + np.array([0.0, 0.72 * (top - center[1]), -radius - 0.35 * r])

@@ -29,11 +29,10 @@ from vhgen.body.chart import (
     BodyChart,
     vertex_normals,
 )
+from vhgen.body.contact import PRESS_LEFT, PRESS_RIGHT, PUSH_LEGS
 from vhgen.body.drape import Fit, Part, ellipsoid, frame, hanging_tube, solid_sheet
 from vhgen.body.garments import (
     FEET,
-    PRESS_LEFT,
-    PRESS_RIGHT,
     displacement,
     face_thickness,
     press_mask,
@@ -54,18 +53,22 @@ def _dense(joints: np.ndarray, weights: np.ndarray, num_bones: int) -> np.ndarra
 
 
 def _skirt_weights(fit: Fit, v: np.ndarray, y_top: float, half: float) -> np.ndarray:
-    """Dense weights (N, B) of a hanging tube's vertices: the skin's near the top; below
-    the hip joints more and more the thighs', blended across the front and back by the
-    side (a panel in front of the left leg follows it nine parts in ten, the middle half
-    and half), never more than 80% on the legs: the cloth swings with the legs without
-    being glued to either."""
+    """Dense weights (N, B) of a hanging tube's vertices. Near the top, the skin's under
+    it; below the hip joints more and more the legs': a panel in front of or behind a leg
+    follows that leg (the thigh, and below the knee half the shin, as the knee pushes
+    cloth), while the cloth between the legs follows both half and half, so in a stride
+    it spans the gap like cloth does instead of splitting into two trouser legs."""
     rig = fit.rig
     hip_y = float(rig.heads[rig.index("LeftUpLeg"), 1])
     knee_y = float(rig.heads[rig.index("LeftLeg"), 1])
+    ankle_y = float(rig.heads[rig.index("LeftFoot"), 1])
     top = fit.nearest_weights(v, (TORSO,) + LEGS, k=8)
-    left = 1.0 / (1.0 + np.exp(-v[:, 0] / max(0.3 * half, 0.02)))
-    legs = left[:, None] * fit.bone("LeftUpLeg") + (1 - left)[:, None] * fit.bone("RightUpLeg")
-    a = 0.8 * np.clip((hip_y - v[:, 1]) / (hip_y - knee_y), 0.0, 1.0)[:, None]
+    left = 1.0 / (1.0 + np.exp(-v[:, 0] / max(0.12 * half, 0.01)))[:, None]
+    shin = 0.5 * np.clip((knee_y - v[:, 1]) / (knee_y - ankle_y), 0.0, 1.0)[:, None]
+    leg = {s: (1 - shin) * fit.bone(f"{s}UpLeg") + shin * fit.bone(f"{s}Leg")
+           for s in ("Left", "Right")}
+    legs = left * leg["Left"] + (1 - left) * leg["Right"]
+    a = 0.95 * np.clip((hip_y - v[:, 1]) / (0.6 * (hip_y - knee_y)), 0.0, 1.0)[:, None]
     low = (1 - a) * fit.bone("Hips") + a * legs
     b = np.clip((min(y_top, hip_y + 0.05) - v[:, 1]) / 0.15, 0.0, 1.0)[:, None]
     return (1 - b) * top + b * low
@@ -198,7 +201,9 @@ def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weight
         verts.append(part.vertices)
         off = part.offsets if part.offsets is not None else np.zeros_like(part.vertices)
         part_offsets.append(off)
-        part_press.append(np.where(np.abs(off).sum(axis=1) > 0, PRESS_LEFT | PRESS_RIGHT, 0))
+        # cloth a hand can press in, and that the legs push out (skirts, coat hems)
+        part_press.append(np.where(np.abs(off).sum(axis=1) > 0,
+                                   PRESS_LEFT | PRESS_RIGHT | PUSH_LEGS, 0))
         all_faces.append(part.faces + n)
         j, w = truncate_weights(part.weights, joints.shape[1])
         all_joints.append(j.astype(joints.dtype))

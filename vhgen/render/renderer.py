@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.body.contact import CLOTH_MARGIN_M, Contacts
 from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
@@ -86,7 +87,7 @@ class GpuMesh:
     transform; skinned meshes carry body-part labels (and a scene class per triangle
     where it is not the draw's). ``ranges`` are the runs of triangles drawn with one
     culling state: (first triangle, count, face culled or None). A dressed body
-    (``hands`` set) is drawn by the garment program (see :class:`HandPress`).
+    (``contacts`` set) is drawn by the garment program (:mod:`vhgen.body.contact`).
     """
 
     vao: Any
@@ -94,7 +95,7 @@ class GpuMesh:
     label_tex: Any
     static: bool
     ranges: tuple[tuple[int, int, str | None], ...] = ()
-    hands: HandPress | None = None
+    contacts: Contacts | None = None
 
     def release(self) -> None:
         for obj in self.objects:
@@ -102,30 +103,17 @@ class GpuMesh:
         self.objects = []
 
 
-@dataclass(frozen=True, eq=False)
-class HandPress:
-    """The person's two hands, which press garments towards the skin (rest pose, the
-    body's frame): per hand (left, right) the bone that carries it ``bones`` (2,), the
-    segment ``a`` -> ``b`` (2, 3) along the palm, the unit ``lateral`` (2, 3) across it,
-    the half thickness ``radius`` (2,) metres and ``width``: half width over half
-    thickness (2,). See :func:`vhgen.body.garments.hand_press`."""
-
-    bones: np.ndarray
-    a: np.ndarray
-    b: np.ndarray
-    lateral: np.ndarray
-    radius: np.ndarray
-    width: np.ndarray
-
-    def uniforms(self, bones: np.ndarray) -> tuple[bytes, bytes, bytes]:
-        """press_a, press_b, press_lateral for the draw's (B, 4, 4) bone matrices."""
-        m = np.asarray(bones, np.float64)[self.bones]  # (2, 4, 4)
-        a = np.einsum("kij,kj->ki", m[:, :3, :3], self.a) + m[:, :3, 3]
-        b = np.einsum("kij,kj->ki", m[:, :3, :3], self.b) + m[:, :3, 3]
-        lat = np.einsum("kij,kj->ki", m[:, :3, :3], self.lateral)
-        pa = np.column_stack([a, self.radius]).astype("f4")
-        pb = np.column_stack([b, self.width]).astype("f4")
-        return pa.tobytes(), pb.tobytes(), np.ascontiguousarray(lat, dtype="f4").tobytes()
+def contact_uniforms(contacts: Contacts, bones: np.ndarray) -> dict[str, bytes]:
+    """The garment program's contact uniforms for one draw's (B, 4, 4) bone matrices
+    (camera frame): the hands (``press_*``) and the legs (``push_*``)."""
+    p = contacts.posed(bones)
+    return {
+        "press_a": np.column_stack([p["hand_a"], contacts.hand_radius]).astype("f4").tobytes(),
+        "press_b": np.column_stack([p["hand_b"], contacts.hand_width]).astype("f4").tobytes(),
+        "press_lateral": np.ascontiguousarray(p["hand_lateral"], dtype="f4").tobytes(),
+        "push_a": np.column_stack([p["leg_a"], contacts.leg_ra]).astype("f4").tobytes(),
+        "push_b": np.column_stack([p["leg_b"], contacts.leg_rb]).astype("f4").tobytes(),
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,6 +202,7 @@ class DepthLabelRenderer:
             defs["WANT_INCIDENCE"] = 1
         if garments:
             defs["GARMENTS"] = 1
+            defs["CLOTH_MARGIN"] = f"{CLOTH_MARGIN_M!r}"
         program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
                                    fragment_shader=_shader("skin.frag", defs))
         program["face_labels"].value = 0
@@ -274,7 +263,7 @@ class DepthLabelRenderer:
 
     def upload(self, vertices, faces, joints, weights, face_labels, num_bones: int,
                static: bool = False, cull: bool = True, face_classes=None, offsets=None,
-               press=None, hands: HandPress | None = None) -> GpuMesh:
+               press=None, contacts: Contacts | None = None) -> GpuMesh:
         """Put a mesh on the GPU: vertices (V,3), faces (T,3), joints (V,4) int, weights
         (V,4), face_labels (T,) uint8 (body parts, or scene classes when ``static``), for a
         rig of ``num_bones`` bones. All meshes of one renderer share the rig size.
@@ -283,9 +272,10 @@ class DepthLabelRenderer:
 
         A dressed body (:class:`vhgen.body.model.Body`) also gives ``face_classes`` (T,)
         uint8 (a triangle's own scene class, 0 = the draw's), ``offsets`` (V, 3) (the
-        garment's thickness over the skin at each vertex), ``press`` (V,) uint8 (which
-        hands may press it) and its ``hands``: it is drawn by the garment program, where a
-        hand resting on a garment presses it in (see ``skin.vert``)."""
+        garment's thickness over the skin at each vertex), ``press`` (V,) uint8 (its
+        contact bits) and its ``contacts``: it is drawn by the garment program, where a
+        hand resting on a garment presses it in and legs push skirts out
+        (:mod:`vhgen.body.contact`, ``skin.vert``)."""
 
         joints = np.asarray(joints)
         if joints.ndim != 2 or joints.shape[1] != 4:
@@ -294,8 +284,8 @@ class DepthLabelRenderer:
         if joints.max() >= num_bones or joints.min() < 0:
             raise RenderError("joint index out of range of the bone array")
         dressed = offsets is not None
-        if dressed and hands is None:
-            raise RenderError("a mesh with garment offsets needs its hands (HandPress)")
+        if dressed and contacts is None:
+            raise RenderError("a mesh with garment offsets needs its contacts")
         self._compile(int(num_bones), dressed)
         program = self.garment_program if dressed else self.program
         labels = np.asarray(face_labels, dtype=np.uint8)
@@ -324,7 +314,7 @@ class DepthLabelRenderer:
         label_tex = self._label_texture(labels)
         mesh = GpuMesh(vao, [vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex]
                        + [b[0] for b in buffers], label_tex, static, ranges,
-                       hands if dressed else None)
+                       contacts if dressed else None)
         self._check("uploading the mesh")
         return mesh
 
@@ -416,13 +406,11 @@ class DepthLabelRenderer:
             elif m.shape != (self.num_bones, 4, 4):
                 raise RenderError(f"expected ({self.num_bones}, 4, 4) bone matrices, "
                                   f"got {m.shape}")
-            program = self.program if d.mesh.hands is None else self.garment_program
+            program = self.program if d.mesh.contacts is None else self.garment_program
             write_bones(program, m, self.skinning)
-            if d.mesh.hands is not None:
-                pa, pb, lat = d.mesh.hands.uniforms(m)
-                program["press_a"].write(pa)
-                program["press_b"].write(pb)
-                program["press_lateral"].write(lat)
+            if d.mesh.contacts is not None:
+                for name, data in contact_uniforms(d.mesh.contacts, m).items():
+                    program[name].write(data)
             program["labels_are_classes"].value = int(d.mesh.static)
             program["instance_id"].value = int(d.instance)
             program["draw_class"].value = int(d.draw_class)

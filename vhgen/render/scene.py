@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.body.garments import hand_press
+from vhgen.body.contact import body_contacts
 from vhgen.body.model import Body
-from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, HandPress, View
+from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
 from vhgen.scene.geometry import PERSON, StaticMesh
 
@@ -59,7 +59,8 @@ def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
     return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
                            body.face_labels, body.num_bones, face_classes=classes,
                            offsets=offsets, press=body.press,
-                           hands=HandPress(**hand_press(body.rig)))
+                           contacts=body_contacts(body.rig, body.vertices - offsets,
+                                                  body.joints))
 
 
 class SceneRenderer:
