@@ -213,6 +213,8 @@ def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weight
         if part.carried and not carried.get("as_person", False):
             lab = np.zeros_like(lab)
             cls[:] = int(carried["class"])
+        elif part.carried:  # all of it the body part that carries it (the hand, not the wrist)
+            lab = np.full_like(lab, np.bincount(lab).argmax())
         all_labels.append(lab.astype(np.uint8))
         classes.append(cls)
         n += len(part.vertices)
