@@ -24,7 +24,7 @@ def posed_mesh(body: Body, rotations: np.ndarray | None = None, root: np.ndarray
     if root is None:
         root = body.rig.heads[int(np.flatnonzero(body.rig.parents < 0)[0])]
     mats = bone_matrices(body.rig, rotations, root)
-    if body.offsets is not None and skinning == "lbs":
+    if body.offsets is not None and body.press is not None and skinning == "lbs":
         from vhgen.body.contact import body_contacts, dressed_positions
 
         contacts = body_contacts(body.rig, body.vertices - body.offsets, body.joints)
