@@ -56,18 +56,19 @@ class Contacts:
 
     def posed(self, matrices: np.ndarray) -> dict[str, np.ndarray]:
         """The shapes moved by (B, 4, 4) bone matrices: ``hand_a``, ``hand_b``,
-        ``hand_lateral``, ``leg_a``, ``leg_b`` in the matrices' frame, float64."""
+        ``hand_lateral``, ``leg_a``, ``leg_b`` in the matrices' frame, float64 (one
+        product for all twelve points and two directions: it runs once per draw)."""
         m = np.asarray(matrices, np.float64)
-
-        def point(bones: np.ndarray, p: np.ndarray) -> np.ndarray:
-            return np.einsum("kij,kj->ki", m[bones, :3, :3], p) + m[bones, :3, 3]
-
-        return {"hand_a": point(self.hand_bones, self.hand_a),
-                "hand_b": point(self.hand_bones, self.hand_b),
-                "hand_lateral": np.einsum("kij,kj->ki", m[self.hand_bones, :3, :3],
-                                          self.hand_lateral),
-                "leg_a": point(self.leg_bones, self.leg_a),
-                "leg_b": point(self.leg_bones, self.leg_b)}
+        bones = np.concatenate([self.hand_bones, self.hand_bones, self.hand_bones,
+                                self.leg_bones, self.leg_bones])
+        pts = np.concatenate([self.hand_a, self.hand_b, self.hand_lateral, self.leg_a,
+                              self.leg_b])
+        w = np.ones(len(pts))
+        w[4:6] = 0.0  # the lateral axes are directions
+        mb = m[bones]
+        out = (mb[:, :3, :3] @ pts[:, :, None])[:, :, 0] + mb[:, :3, 3] * w[:, None]
+        return {"hand_a": out[0:2], "hand_b": out[2:4], "hand_lateral": out[4:6],
+                "leg_a": out[6:10], "leg_b": out[10:14]}
 
 
 def body_contacts(rig: Rig, skin: np.ndarray, joints: np.ndarray) -> Contacts:

@@ -119,7 +119,8 @@ def tight_layers(chart: BodyChart, outfit: dict) -> list[Layer]:
             & (chart.face_height > bottom["rise"] - 0.15), bottom["thickness_m"])
     top = outfit.get("top")
     if top is not None:
-        hem = top["hem"] if top["kind"] != "dress" else outfit["bottom"]["rise"] - 0.1
+        # a dress's top ends at its skirt's waist
+        hem = top["hem"] if top["kind"] != "dress" else (bottom or {}).get("rise", 0.3) - 0.1
         add(top["kind"], upper_body(chart, top["sleeve"], hem, top["collar"]),
             top["thickness_m"])
     outer = outfit.get("outer")

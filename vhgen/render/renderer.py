@@ -107,7 +107,12 @@ def contact_uniforms(contacts: Contacts, bones: np.ndarray) -> dict[str, bytes]:
     """The garment program's contact uniforms for one draw's (B, 4, 4) bone matrices
     (camera frame): the hands (``press_*``) and the legs (``push_*``)."""
     p = contacts.posed(bones)
+    # a sphere holding each flattened capsule: centre, half its length + its half width
+    centre = 0.5 * (p["hand_a"] + p["hand_b"])
+    reach = (0.5 * np.linalg.norm(p["hand_b"] - p["hand_a"], axis=1)
+             + contacts.hand_radius * np.maximum(contacts.hand_width, 1.0))
     return {
+        "press_reach": np.column_stack([centre, reach]).astype("f4").tobytes(),
         "press_a": np.column_stack([p["hand_a"], contacts.hand_radius]).astype("f4").tobytes(),
         "press_b": np.column_stack([p["hand_b"], contacts.hand_width]).astype("f4").tobytes(),
         "press_lateral": np.ascontiguousarray(p["hand_lateral"], dtype="f4").tobytes(),
@@ -297,7 +302,6 @@ class DepthLabelRenderer:
         position = np.asarray(vertices, np.float64)
         buffers = []
         if dressed:
-            position = position - np.asarray(offsets, np.float64)  # the skin
             extra = np.column_stack([np.asarray(offsets, np.float64),
                                      np.asarray(press, np.float64)])
             buffers.append((ctx.buffer(np.ascontiguousarray(extra, dtype="f4").tobytes()),

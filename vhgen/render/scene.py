@@ -53,7 +53,7 @@ def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
     arrays will do: the dressed ones are optional)."""
     offsets = getattr(body, "offsets", None)
     classes = getattr(body, "face_classes", None)
-    if offsets is None:
+    if offsets is None or not offsets.any():  # nothing to press: the plain program
         return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
                                body.face_labels, body.num_bones, face_classes=classes)
     return renderer.upload(body.vertices, body.faces, body.joints, body.weights,

@@ -23,23 +23,16 @@ vec3 skin_position(vec3 p, ivec4 j, vec4 w) {
     return p + 2.0 * cross(br.xyz, cross(br.xyz, p) + br.w * p) + t;
 }
 
-// A point and a vector at it skinned alike: the vector turns with the blended rotation
-// (DQS is affine per vertex, so pos + dir is where p + d would be skinned to).
-void skin_offset(vec3 p, vec3 d, ivec4 j, vec4 w, out vec3 pos, out vec3 dir) {
+// A vector at a vertex turned by the vertex's blended rotation (DQS is affine per vertex:
+// skin_position(p + d) = skin_position(p) + skin_vector(d)).
+vec3 skin_vector(vec3 d, ivec4 j, vec4 w) {
     vec4 r0 = dq_real[j.x];
     vec4 br = w.x * r0;
-    vec4 bd = w.x * dq_dual[j.x];
     for (int k = 1; k < 4; ++k) {
-        float s = dot(dq_real[j[k]], r0) < 0.0 ? -w[k] : w[k];
-        br += s * dq_real[j[k]];
-        bd += s * dq_dual[j[k]];
+        br += (dot(dq_real[j[k]], r0) < 0.0 ? -w[k] : w[k]) * dq_real[j[k]];
     }
-    float n = length(br);
-    br /= n;
-    bd /= n;
-    vec3 t = 2.0 * (br.w * bd.xyz - bd.w * br.xyz + cross(br.xyz, bd.xyz));
-    pos = p + 2.0 * cross(br.xyz, cross(br.xyz, p) + br.w * p) + t;
-    dir = d + 2.0 * cross(br.xyz, cross(br.xyz, d) + br.w * d);
+    br /= length(br);
+    return d + 2.0 * cross(br.xyz, cross(br.xyz, d) + br.w * d);
 }
 #else
 uniform mat4 bones[MAX_BONES];
@@ -51,10 +44,10 @@ vec3 skin_position(vec3 p, ivec4 j, vec4 w) {
     return s.xyz;
 }
 
-// A point and a vector at it skinned alike (pos + dir is where p + d is skinned to).
-void skin_offset(vec3 p, vec3 d, ivec4 j, vec4 w, out vec3 pos, out vec3 dir) {
-    mat4 m = w.x * bones[j.x] + w.y * bones[j.y] + w.z * bones[j.z] + w.w * bones[j.w];
-    pos = (m * vec4(p, 1.0)).xyz;
-    dir = mat3(m) * d;
+// A vector at a vertex turned by the blended bone matrices (linear blend skinning is
+// linear: skin_position(p + d) = skin_position(p) + skin_vector(d)).
+vec3 skin_vector(vec3 d, ivec4 j, vec4 w) {
+    return w.x * (mat3(bones[j.x]) * d) + w.y * (mat3(bones[j.y]) * d)
+         + w.z * (mat3(bones[j.z]) * d) + w.w * (mat3(bones[j.w]) * d);
 }
 #endif
