@@ -6,12 +6,13 @@ avatar (once per avatar).
 
 One llvmpipe thread and one thread per math library, as in a worker. Every body is
 uploaded once; each frame draws every body in the same pose from the same camera (a
-Kinect v1 at 640x480, 2.6 m in front, 1.2 m high), interleaved, and times the draw with
-its read-back (what the render step does per person), the fastest of ``--repeat`` draws
-(this machine is shared). Rows: the median over frames of those GL milliseconds, the ratio to the bare body (target: at most 1.3), the triangles the renderer
-is given (+ the share added), and the median milliseconds of building the avatar on the
-CPU (shape, rig, weights, labels and the outfit). "typical" is the mean over avatars
-dressed from the default wardrobe (``avatars: {outfit: {}}``).
+Kinect v1 at 640x480, 2.6 m in front, 1.2 m high), interleaved in a random order, and
+times the draw with its read-back (what the render step does per person): the fastest of
+``--repeat`` draws, as this machine is shared. Rows: the median over frames of those GL
+milliseconds, the ratio to the bare body (target: at most 1.3), the triangles the
+renderer is given (+ the share added), and the median milliseconds of building the
+avatar on the CPU (shape, rig, weights, labels and the outfit). "typical" is the mean
+over avatars dressed from the default wardrobe (``avatars: {outfit: {}}``).
 """
 
 from __future__ import annotations
@@ -136,7 +137,8 @@ def main() -> None:
               f"{'+' if added >= 0 else ''}{100 * added:3.0f}% {build_ms:8.0f}")
     t = np.arange(len(outfits), len(bodies))
     tris = np.mean([len(bodies[k][1].faces) for k in t])
-    print(f"{'typical (default wardrobe, mean of %d avatars)' % len(t):58s} "
+    label = f"typical (default wardrobe, mean of {len(t)} avatars)"
+    print(f"{label:58s} "
           f"{gl[t].mean():7.2f} {gl[t].mean() / gl[0]:7.2f} {tris:7.0f} "
           f"+{100 * (tris - tri0) / tri0:3.0f}% {np.mean([bodies[k][2] for k in t]):8.0f}")
     print(f"{'typical, worst avatar':58s} {gl[t].max():7.2f} {gl[t].max() / gl[0]:7.2f}")
