@@ -55,31 +55,34 @@ out vec3 v_cam;
 void main() {
     vec3 cam = skin_position(in_position, in_joints, in_weights);
 #ifdef GARMENTS
+    // The branches are written as loops that run at most once: llvmpipe runs both sides
+    // of an if for a group of vertices, but leaves a loop as soon as no vertex of the
+    // group is in it, so vertices far from the hands and off the loose cloth (nearly all)
+    // pay only for these tests.
     int bits = int(in_offset.w + 0.5);
     float scale = 1.0;
     float t = length(in_offset.xyz);
-    if (t > 0.0 && (bits & 3) != 0) {
+    bool near = false;
+    for (int k = 0; k < 2; ++k) {
         // the skin under it is within 2t of it (|skin_vector(d)| <= |d|): a hand further
         // than its reach + 2t cannot press it
-        bool near = false;
-        for (int k = 0; k < 2; ++k) {
-            vec3 c = cam - press_reach[k].xyz;
-            float reach = press_reach[k].w + 2.0 * t;
-            near = near || ((bits & (1 << k)) != 0 && dot(c, c) < reach * reach);
-        }
-        if (near) {
-            vec3 off = skin_vector(in_offset.xyz, in_joints, in_weights);
-            vec3 skin = cam - off;
-            for (int k = 0; k < 2; ++k) {
-                if ((bits & (1 << k)) != 0) {
-                    scale = min(scale, clamp((hand_distance(skin, k) - press_a[k].w) / t,
-                                             0.0, 1.0));
-                }
-            }
-            cam = skin + scale * off;
-        }
+        vec3 c = cam - press_reach[k].xyz;
+        float reach = press_reach[k].w + 2.0 * t;
+        near = near || (t > 0.0 && (bits & (1 << k)) != 0 && dot(c, c) < reach * reach);
     }
-    if ((bits & 4) != 0 && scale >= 1.0) {  // a hand pressing the cloth keeps it in
+    for (int once = near ? 0 : 1; once < 1; ++once) {
+        vec3 off = skin_vector(in_offset.xyz, in_joints, in_weights);
+        vec3 skin = cam - off;
+        for (int k = 0; k < 2; ++k) {
+            if ((bits & (1 << k)) != 0) {
+                scale = min(scale, clamp((hand_distance(skin, k) - press_a[k].w) / t,
+                                         0.0, 1.0));
+            }
+        }
+        cam = skin + scale * off;
+    }
+    // a hand pressing the cloth keeps it in
+    for (int once = (bits & 4) != 0 && scale >= 1.0 ? 0 : 1; once < 1; ++once) {
         for (int k = 0; k < 4; ++k) {
             cam = push_out(cam, k);
         }
