@@ -81,7 +81,7 @@ def hull_radius(points: np.ndarray, center: np.ndarray, angles: np.ndarray,
 
 
 def hanging_tube(skin: np.ndarray, y_top: float, y_bottom: float, ease: float, flare: float,
-                 cloth: float, columns: int = 36, ring_step: float = 0.04,
+                 cloth: float, columns: int = 28, ring_step: float = 0.05,
                  gap_angle: float = 0.0
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The outer and inner grids (R, C, 3) of a tube hanging from ``y_top`` down to
