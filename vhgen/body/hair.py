@@ -148,8 +148,3 @@ def hat_parts(fit: Fit, hat: dict, hair: dict | None) -> list[Part]:
                                                 segments=20), head_w, (HEAD,))]
     return []
 
-
-def hair_guide(helper_vertices: np.ndarray) -> np.ndarray:
-    """The long-hair helper's points (N, 3), shaped with the body: what long hair is as
-    wide as (see :func:`vhgen.body.drape.curtain`)."""
-    return np.asarray(helper_vertices, np.float64)

@@ -38,7 +38,8 @@ class Body:
     ``vertices - offsets``), ``press`` (V,) uint8: which of its own hands may press the
     garment there towards the skin (:func:`vhgen.body.garments.press_mask`), and
     ``face_classes`` (T,) uint8: a triangle's scene class when it is not the person's
-    (carried things; 0 = the person's). All three are None on a bare body.
+    (carried things; 0 = the person's). All three are None on a bare body. The outfit's
+    own parts are the last ``appended_faces`` triangles (on vertices of their own).
     """
 
     vertices: np.ndarray
@@ -52,6 +53,7 @@ class Body:
     offsets: np.ndarray | None = None
     press: np.ndarray | None = None
     face_classes: np.ndarray | None = None
+    appended_faces: int = 0
 
     @property
     def num_bones(self) -> int:
@@ -189,7 +191,7 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
     return Body(vertices=d["vertices"], faces=d["faces"], joints=d["joints"],
                 weights=d["weights"], face_labels=d["face_labels"], rig=rig, scheme=scheme,
                 params=params, offsets=d["offsets"], press=d["press"],
-                face_classes=d["face_classes"])
+                face_classes=d["face_classes"], appended_faces=len(d["faces"]) - len(faces))
 
 
 def build_avatar(asset_dir: str | Path, scheme: LabelScheme, avatar: dict) -> Body:

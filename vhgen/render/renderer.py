@@ -225,7 +225,22 @@ class DepthLabelRenderer:
         if garments and self.garment_program is None:
             self.garment_program = self._program(num_bones, True)
 
-    def _cull_ranges(self, vertices, faces, labels, cull: bool
+    def _topology(self, faces: np.ndarray, num_vertices: int
+                  ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """The closed components and the vertex-cache position of each triangle of a
+        topology, cached (avatars share their topology: found once, ~60 ms)."""
+        key = (faces.shape, hashlib.sha1(np.ascontiguousarray(faces).tobytes()).digest())
+        cached = self._topologies.get(key)
+        if cached is None:
+            position = np.empty(len(faces), np.int64)
+            position[vertex_cache_order(faces, num_vertices)] = np.arange(len(faces))
+            cached = (closed_components(faces, num_vertices), position)
+            if len(self._topologies) >= 8:
+                self._topologies.pop(next(iter(self._topologies)))
+            self._topologies[key] = cached
+        return cached
+
+    def _cull_ranges(self, vertices, faces, labels, cull: bool, shared: int = 0
                      ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, int, str | None], ...]]:
         """Faces and labels reordered so that triangles of closed surfaces come first, each
         run in vertex-cache order (:func:`~vhgen.scene.topology.vertex_cache_order`: the
@@ -237,23 +252,28 @@ class DepthLabelRenderer:
         ids identical; 0-3 silhouette pixels a frame where a far-side triangle used to tie
         the depth test now show the near side, < 0.4 mm apart). The projection does not
         flip y, so a triangle wound counter-clockwise seen from outside appears clockwise
-        on screen when it faces the camera: GL's "back"; the far side is GL's "front"."""
+        on screen when it faces the camera: GL's "back"; the far side is GL's "front".
+        ``shared``: the first triangles are a topology other meshes share (a body under
+        the appended parts of its outfit, which use vertices of their own)."""
         faces = np.asarray(faces)
         if not cull or len(faces) == 0:
             return faces, labels, ((0, len(faces), None),)
         p = self.projection
         far_side_of_outward = "front" if p[0, 0] * p[1, 1] > 0 else "back"
         near_side = {"front": "back", "back": "front"}[far_side_of_outward]
-        key = (faces.shape, hashlib.sha1(np.ascontiguousarray(faces).tobytes()).digest())
-        cached = self._topologies.get(key)
-        if cached is None:  # avatars share their topology: found once, ~60 ms
-            position = np.empty(len(faces), np.int64)
-            position[vertex_cache_order(faces, len(vertices))] = np.arange(len(faces))
-            cached = (closed_components(faces, len(vertices)), position)
-            if len(self._topologies) >= 8:
-                self._topologies.pop(next(iter(self._topologies)))
-            self._topologies[key] = cached
-        topology, position = cached
+        if 0 < shared < len(faces):
+            # a dressed body: the body's topology (shared by every avatar, cached) and its
+            # own small parts (their vertices are their own: separate components)
+            (head_comp, head_closed), head_pos = self._topology(faces[:shared], len(vertices))
+            tail = faces[shared:]
+            tail_comp, tail_closed = closed_components(tail, len(vertices))
+            tail_pos = np.empty(len(tail), np.int64)
+            tail_pos[vertex_cache_order(tail, len(vertices))] = np.arange(len(tail))
+            topology = (np.concatenate([head_comp, tail_comp + len(head_closed)]),
+                        np.concatenate([head_closed, tail_closed]))
+            position = np.concatenate([head_pos, tail_pos + shared])
+        else:
+            topology, position = self._topology(faces, len(vertices))
         side = closed_sides(vertices, faces, topology)
         rank = np.where(side == OUTWARD, 0, np.where(side == INWARD, 1, 2))
         order = np.lexsort((position, rank))
@@ -268,7 +288,7 @@ class DepthLabelRenderer:
 
     def upload(self, vertices, faces, joints, weights, face_labels, num_bones: int,
                static: bool = False, cull: bool = True, face_classes=None, offsets=None,
-               press=None, contacts: Contacts | None = None) -> GpuMesh:
+               press=None, contacts: Contacts | None = None, shared: int = 0) -> GpuMesh:
         """Put a mesh on the GPU: vertices (V,3), faces (T,3), joints (V,4) int, weights
         (V,4), face_labels (T,) uint8 (body parts, or scene classes when ``static``), for a
         rig of ``num_bones`` bones. All meshes of one renderer share the rig size.
@@ -280,7 +300,8 @@ class DepthLabelRenderer:
         garment's thickness over the skin at each vertex), ``press`` (V,) uint8 (its
         contact bits) and its ``contacts``: it is drawn by the garment program, where a
         hand resting on a garment presses it in and legs push skirts out
-        (:mod:`vhgen.body.contact`, ``skin.vert``)."""
+        (:mod:`vhgen.body.contact`, ``skin.vert``); ``shared``: its first triangles are
+        the body's topology, the rest its outfit's own parts (found once per topology)."""
 
         joints = np.asarray(joints)
         if joints.ndim != 2 or joints.shape[1] != 4:
@@ -297,7 +318,7 @@ class DepthLabelRenderer:
         if face_classes is not None:
             # two bytes per triangle: part label, own scene class (0 = the draw's)
             labels = np.column_stack([labels, np.asarray(face_classes, dtype=np.uint8)])
-        faces, labels, ranges = self._cull_ranges(vertices, faces, labels, cull)
+        faces, labels, ranges = self._cull_ranges(vertices, faces, labels, cull, shared)
         ctx = self.ctx
         position = np.asarray(vertices, np.float64)
         buffers = []

@@ -53,12 +53,14 @@ def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
     arrays will do: the dressed ones are optional)."""
     offsets = getattr(body, "offsets", None)
     classes = getattr(body, "face_classes", None)
+    shared = len(body.faces) - getattr(body, "appended_faces", 0)
     if offsets is None or not offsets.any():  # nothing to press: the plain program
         return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
-                               body.face_labels, body.num_bones, face_classes=classes)
+                               body.face_labels, body.num_bones, face_classes=classes,
+                               shared=shared)
     return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
                            body.face_labels, body.num_bones, face_classes=classes,
-                           offsets=offsets, press=body.press,
+                           offsets=offsets, press=body.press, shared=shared,
                            contacts=body_contacts(body.rig, body.vertices - offsets,
                                                   body.joints))
 
