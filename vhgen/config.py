@@ -143,8 +143,9 @@ class JobConfig:
     def class_names(self) -> tuple[str, ...]:
         """The names of the ``classes`` array's ids: the scene's, then ``carried`` when the
         avatars carry things that are not the person (:mod:`vhgen.body.wardrobe`)."""
-        extra = (CARRIED_CLASS,) if self.avatars.outfit.has_own_class else ()
-        return self.scene.class_names + extra
+        names = self.scene.class_names
+        own = self.avatars.outfit.has_own_class and CARRIED_CLASS not in names
+        return names + ((CARRIED_CLASS,) if own else ())
 
     @classmethod
     def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
@@ -199,7 +200,9 @@ class JobConfig:
         camera = _camera(d.get("camera") or {}, path)
         scene = _scene(d.get("scene") or {}, path, camera)
         if avatars.outfit.has_own_class:  # carried things: the class after the scene's
-            avatars = replace(avatars, outfit=avatars.outfit.with_class(len(scene.class_names)))
+            names = scene.class_names  # (or the props' own class of that name)
+            cid = names.index(CARRIED_CLASS) if CARRIED_CLASS in names else len(names)
+            avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}
