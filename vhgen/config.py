@@ -202,6 +202,9 @@ class JobConfig:
         if avatars.outfit.has_own_class:  # carried things: the class after the scene's
             names = scene.class_names  # (or the props' own class of that name)
             cid = names.index(CARRIED_CLASS) if CARRIED_CLASS in names else len(names)
+            if cid >= MAX_SCENE_CLASSES:
+                raise ConfigError(path, "avatars.outfit.carried", f"no class id left for "
+                                  f"carried things: the scene has {len(names)} classes")
             avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
