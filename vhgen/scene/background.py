@@ -37,7 +37,8 @@ if TYPE_CHECKING:
 # -- the floor --------------------------------------------------------------------------
 FLOOR_STEP_PX = 4  # the plane is fitted on every 4th pixel of every 4th row (~15k points)
 HYPOTHESES = 1000  # RANSAC: planes through 3 points, drawn with a fixed seed
-REFINED = 8  # the best hypotheses refined (Tukey IRLS) and compared by their cost
+REFINED = 8  # the best distinct hypotheses refined (Tukey IRLS), compared by their cost
+SCORE_POINTS = 4000  # hypotheses are ranked on this many of the points
 # residual scale of a floor point, sigma(z) = SIGMA_M + SIGMA_Z2 z^2 (metres): the depth
 # noise grows with z^2 (1.44 mm/m^2 axial noise and 2.9 mm/m^2 quantisation steps on the
 # shared OpenNI frames, README "Real frames and realism"); on capture0001-0003 the floor
@@ -122,6 +123,9 @@ def _refine(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.nda
     to convergence from a hypothesis); the normal turned to point up (-y in the camera
     frame)."""
     cos_facing = math.cos(math.radians(FACING_DEG))
+    # only points near the hypothesis can ever weigh (the plane moves little)
+    near = np.abs(points @ n + h) < 3 * CUT * sigma
+    points, sigma, facing = points[near], sigma[near], facing[near]
     for _ in range(30):
         u = (points @ n + h) / sigma / CUT
         w = np.where((np.abs(u) < 1) & (np.abs(facing @ n) >= cos_facing),
@@ -133,7 +137,7 @@ def _refine(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.nda
         n2 = np.linalg.eigh(m)[1][:, 0]
         n2 = -n2 if n2[1] > 0 else n2
         h2 = float(-n2 @ c)
-        done = np.abs(n2 - n).max() < 1e-10 and abs(h2 - h) < 1e-10
+        done = np.abs(n2 - n).max() < 1e-8 and abs(h2 - h) < 1e-8
         n, h = n2, h2
         if done:
             break
@@ -147,8 +151,10 @@ def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
     RANSAC in float64 on the points of every FLOOR_STEP_PX-th pixel: HYPOTHESES planes
     through three points (a fixed seed: the same file gives the same floor), kept when
     their normal is within MAX_TILT_DEG of the image's up direction with the camera
-    CAMERA_HEIGHT_M above them; the REFINED cheapest (MSAC cost, points under the plane
-    penalised) are refined by Tukey-weighted least squares, and the cheapest refined plane
+    CAMERA_HEIGHT_M above them; the REFINED cheapest distinct ones (MSAC cost on
+    SCORE_POINTS of the points, points under the plane penalised, points whose surface
+    does not face along the plane outliers) are refined by Tukey-weighted least squares
+    on all the points, and the cheapest refined plane
     with at most MAX_BELOW of the points under it wins. BackgroundError naming ``path``
     when no plane qualifies or the best holds less than MIN_FLOOR_FRACTION of the points.
     """
@@ -179,11 +185,21 @@ def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
         raise BackgroundError(path, f"no floor: no plane within {MAX_TILT_DEG:g} deg of "
                               f"level {CAMERA_HEIGHT_M[0]}-{CAMERA_HEIGHT_M[1]} m under "
                               "the camera")
-    cost = np.concatenate([_cost(p, sigma, facing, n[k], h[k])
+    # hypotheses are ranked on a sample of the points (a fixed one), refined on all
+    sample = rng.permutation(len(p))[:SCORE_POINTS]
+    cost = np.concatenate([_cost(p[sample], sigma[sample], facing[sample], n[k], h[k])
                            for k in np.array_split(keep, -(-len(keep) // 64))])
     best: tuple[float, np.ndarray, float] | None = None
     worst_below = 0.0
-    for k in keep[np.argsort(cost, kind="stable")[:REFINED]]:
+    tried: list[tuple[np.ndarray, float]] = []
+    for k in keep[np.argsort(cost, kind="stable")]:
+        if len(tried) == REFINED:
+            break
+        # a hypothesis within 1 deg and 2 cm of one refined already refines to the same
+        if any(float(n[k] @ m) > math.cos(math.radians(1.0)) and abs(h[k] - g) < 0.02
+               for m, g in tried):
+            continue
+        tried.append((n[k], float(h[k])))
         nk, hk = _refine(p, sigma, facing, n[k], float(h[k]))
         r = (p @ nk + hk) / sigma
         below = float((r < -CUT).mean())
