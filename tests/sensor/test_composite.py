@@ -59,6 +59,13 @@ def test_real_pixels_out_of_reach_keep_their_bytes(sensor):
     assert np.abs(out.depth_mm[190:320, 260:320][core].astype(float) - 1500).max() < 60
     # holes by cause add up to the pixels without a measurement
     assert sum(out.holes.values()) == int((~out.valid).sum())
+    # no island the sensor's speckle filter would remove (openni_525: 200 px; the real
+    # frame has none either)
+    from scipy import ndimage
+
+    lab, n = ndimage.label(out.valid)
+    if sensor == "openni_525":
+        assert np.bincount(lab.ravel())[1:].min() > 200
     assert out.holes[REAL_HOLE] >= 40 * 40
     # raw11 is the encoding of the composed disparity: real pixels from their real depth
     fb = model.cfg.intrinsics.fx * model.cfg.baseline_m

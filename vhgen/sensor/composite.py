@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from vhgen.sensor.effects import CorrelationWindow, Registration
+from vhgen.sensor.effects import CorrelationWindow, Registration, SpeckleFilter
 from vhgen.sensor.kernels import encode_raw11
 from vhgen.sensor.simulator import SensorModel, SensorOutput
 
@@ -62,6 +62,26 @@ def _near(mask: np.ndarray, rows: int, cols: int) -> np.ndarray:
 
     m = ndimage.maximum_filter1d(mask.view(np.uint8), 2 * cols + 1, axis=1)
     return ndimage.maximum_filter1d(m, 2 * rows + 1, axis=0).astype(bool)
+
+
+def _islands(cfg, valid: np.ndarray, zone: np.ndarray) -> np.ndarray | None:
+    """With a ``speckle_filter`` in the sensor: the valid islands of the composed frame
+    that it would remove (4-connected, at most its area) lying wholly within ``zone``, or
+    None. Real pixels the people's holes cut off from the rest become such islands when
+    the sensor, in both passes, had already dropped their neighbours at a real edge (the
+    real frame measured them): the device's output holds no islands, so they go too."""
+    areas = [e.max_area_px for e in cfg.effects if isinstance(e, SpeckleFilter)]
+    if not areas:
+        return None
+    from scipy import ndimage
+
+    lab, n = ndimage.label(valid, structure=ndimage.generate_binary_structure(2, 1))
+    if not n:
+        return None
+    small = np.bincount(lab.reshape(-1), minlength=n + 1) <= max(areas)
+    small[np.unique(lab[~zone])] = False  # islands reaching out of the zone stay
+    small[0] = False
+    return small[lab]
 
 
 def simulate_over_real(model: SensorModel, depth: np.ndarray, rng: np.random.Generator | None,
@@ -102,9 +122,15 @@ def simulate_over_real(model: SensorModel, depth: np.ndarray, rng: np.random.Gen
     z_near = float(np.asarray(depth)[synthetic].min(initial=np.inf))
     rows, cols = reach_px(model, z_near if z_near > 0 else 0.1)
     changed = (a.valid != b.valid) | (a.depth_mm != b.depth_mm)
-    keep = (a.labels == real_label) & ~(changed & _near(synthetic, rows, cols))
+    zone = _near(synthetic, rows, cols)
+    keep = (a.labels == real_label) & ~(changed & zone)
     depth_mm = np.where(keep, real_mm, a.depth_mm)
     valid = depth_mm > 0
+    islands = _islands(cfg, valid, zone)
+    if islands is not None:
+        depth_mm[islands] = 0
+        valid &= ~islands
+        keep &= ~islands
     disp = np.zeros(real_mm.shape)
     np.divide(fb * 1000.0, real_mm, out=disp, where=keep & valid)
     disp = np.where(keep, disp, a.disparity)
@@ -112,6 +138,10 @@ def simulate_over_real(model: SensorModel, depth: np.ndarray, rng: np.random.Gen
     # a real pixel the real sensor did not measure either is the real frame's hole
     real_hole = (a.labels == real_label) & ~valid & (real_mm == 0)
     lost = ~valid & ~real_hole
+    if islands is not None:
+        lost &= ~islands
     holes = {c: int(np.count_nonzero(m & lost)) for c, m in a.hole_masks.items()}
     holes[REAL_HOLE] = int(np.count_nonzero(real_hole))
+    if islands is not None:
+        holes["speckle"] = holes.get("speckle", 0) + int(np.count_nonzero(islands))
     return SensorOutput(depth_mm, valid, a.labels, raw, disp, holes)
