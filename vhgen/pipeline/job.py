@@ -57,7 +57,9 @@ class Job:
 
 def prepare_job(cfg: JobConfig, *, max_frames: int | None = None,
                 asset_dir: str | Path | None = None) -> Job:
-    """Read, retarget and select the poses, build the base body and plan the frames.
+    """Read the real backgrounds (``scene.backgrounds``: floor and free floor of each,
+    see :func:`vhgen.scene.background.load_backgrounds`; a bad file is one warning line),
+    read, retarget and select the poses, build the base body and plan the frames.
 
     max_frames : only the plan's first N frames (the same frames, seeds and shards as the
         full job). asset_dir : the MakeHuman assets (default: the config's, else the

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -364,7 +365,7 @@ def load_backgrounds(sources: Sequence[BackgroundSource], intr: Intrinsics,
     A frame of another size than the sensor's ``intr``, with other intrinsics (see
     :func:`intrinsics_mismatch`; a PNG has the entry's given ones, or the sensor's), with
     no floor, or whose free floor within ``reach`` holds no disc of MIN_FREE_RADIUS_M, or
-    that cannot be read, is one ``warn`` line naming the file, and is left out; an entry
+    that cannot be read, is one ``warn`` line naming the file, and is left out; a folder
     that leaves nothing is one line naming its field. No usable frame at all:
     ConfigError naming ``scene.backgrounds`` (of the config file ``config``).
     """
@@ -409,7 +410,7 @@ def load_backgrounds(sources: Sequence[BackgroundSource], intr: Intrinsics,
             grids.append(clear)
             origins.append(origin)
             found += 1
-        if not found:
+        if not found and Path(src.path).is_dir():  # a file has said why in its line
             skip(f"scene.backgrounds[{i}]: no usable depth frame in {src.path}")
     if not files:
         raise ConfigError(config, "scene.backgrounds", f"no usable background frame in "
