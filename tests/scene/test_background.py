@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vhgen.camera import Intrinsics, mounted_camera, pitch_roll_deg
+from vhgen.camera import Intrinsics, mounted_camera, pitch_roll_deg, project
 from vhgen.depthfile import write_pcd
 from vhgen.errors import BackgroundError, ConfigError
 from vhgen.scene.background import (
@@ -147,8 +147,16 @@ def test_free_floor_keeps_clear_of_obstacles():
     free = clear > 0
     assert free.sum() > 500
     assert (np.hypot(dx, dz)[free] >= r[free] - 1e-9).all()
-    assert (3.0 - np.abs(wx[free]) >= r[free] - 1e-9).all()
     assert (wz[free] - -3.0 >= r[free] - 1e-9).all()
+    # a disc reaches through a side wall only where the wall is out of view (beside the
+    # image, near the camera): wherever it crosses x = +-3, the wall's foot is not seen
+    cross = free & (3.0 - np.abs(wx) < r)
+    assert cross.any()
+    half = np.sqrt(np.maximum(r ** 2 - (3.0 - np.abs(wx)) ** 2, 0.0))
+    for k in (-1.0, 0.0, 1.0):
+        foot = np.stack([np.sign(wx) * 3.0, np.zeros_like(wx), wz + k * half], -1)[cross]
+        u = project(INTR, foot @ w2c[:3, :3].T + w2c[:3, 3])[:, 0]
+        assert ((u < 0) | (u > INTR.width - 1)).all()
     # the floor nearer than the view reaches is free (people may stand there, feet out of
     # view); the floor hidden behind the box is not
     assert free[(np.hypot(x, z) < 1.2) & (np.hypot(x, z) > 0.8) & (np.abs(x) < 0.1)].all()

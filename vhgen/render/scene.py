@@ -124,7 +124,9 @@ class SceneRenderer:
         if self._background is None or self._background[0] != bg.index:
             self._background = (bg.index, real_depth_m(bg.depth_mm))
             self.renderer.set_background(self._background[1])
-        cls = self.class_id(bg.class_name) if self.class_id is not None else 0
+        if self.class_id is None:
+            raise RenderError("a real background needs the scene's class ids (class_id)")
+        cls = self.class_id(bg.class_name)
         real_ids = int(pack_ids(np.zeros(1, np.uint8), np.zeros(1, np.uint8),
                                 np.full(1, cls, np.uint8))[0])  # label 0, instance 0
         return composite(self.renderer.draw(draws), self._background[1], real_ids)

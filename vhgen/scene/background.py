@@ -236,12 +236,13 @@ def free_floor(depth_mm: np.ndarray, intr: Intrinsics,
     grid of the floor (x, z): floor points (within CUT sigma of y = 0) and obstacle points
     (above that, up to OBSTACLE_TOP_M). A cell is free when it holds floor points and
     fewer than MIN_OBSTACLE_POINTS obstacle points; so is the floor nearer than the view
-    reaches (:func:`_below_view`). Other cells seen by no point are not free (what is
+    reaches (:func:`_out_of_view`). Other cells seen by no point are not free (what is
     behind a sofa's front is unknown, most likely more sofa), except single gaps between
     free cells (small holes of the sensor); free slivers narrower than 3 cells are not.
     Returns the grid origin (2,) float64 (x, z of cell [0, 0]'s centre) and the
-    clearance (Z, X) uint8 cm: the radius of the largest disc about each cell's centre
-    that holds only free cells (0 off the free floor; capped at 2.55 m).
+    clearance (Z, X) uint8 cm: the radius of the largest disc about each free cell's
+    centre that holds only free cells and cells beside the view (0 off the free floor;
+    capped at 2.55 m).
     """
     from scipy import ndimage
 
@@ -268,39 +269,46 @@ def free_floor(depth_mm: np.ndarray, intr: Intrinsics,
     n_obst = np.bincount(cell[obstacle[inside]], minlength=nx * nz).reshape(nz, nx)
     blocked = n_obst >= MIN_OBSTACLE_POINTS
     origin = np.array([(x0 + 0.5) * CELL_M, (z0 + 0.5) * CELL_M])
-    free = ((n_floor > 0) | _below_view(depth_mm, intr, w2c, origin, (nz, nx))) & ~blocked
+    below, beside = _out_of_view(depth_mm, intr, w2c, origin, (nz, nx))
+    free = ((n_floor > 0) | below) & ~blocked
     # a cell seen by no point between free ones (a hole of the sensor) is free too
     square = np.ones((3, 3), bool)
     free |= ndimage.binary_closing(free, square) & (n_floor == 0) & ~blocked
     # and slivers less than 3 cells wide are not (the noise of the floor points at a
     # wall's foot puts some beyond it)
     free = ndimage.binary_opening(free, square)
-    free[[0, -1], :] = False
-    free[:, [0, -1]] = False
-    # distance from a cell's centre to the nearest point of a cell that is not free
-    edt = ndimage.distance_transform_edt(free)
-    clear = np.maximum(edt - math.sqrt(0.5), 0.0) * CELL_M
+    # a footprint may reach out of the view sideways; its centre stays on free floor
+    passable = free | (beside & ~blocked)
+    passable[[0, -1], :] = False
+    passable[:, [0, -1]] = False
+    # distance from a cell's centre to the nearest point of a cell that is not passable
+    edt = ndimage.distance_transform_edt(passable)
+    clear = np.where(free, np.maximum(edt - math.sqrt(0.5), 0.0) * CELL_M, 0.0)
     return origin, np.minimum(np.floor(clear * 100.0), 255).astype(np.uint8)
 
 
-def _below_view(depth_mm: np.ndarray, intr: Intrinsics, w2c: np.ndarray, origin: np.ndarray,
-                shape: tuple[int, int]) -> np.ndarray:
-    """(Z, X) bool: floor cells in front of the camera that fall below the lowest row of
-    the image holding a measurement, between its first and last measured columns: floor
-    nearer than the view reaches. Nothing seen stands on them (whatever stood there and
-    rose into the view would be an obstacle of the cells it stands on), so a person may
-    stand there, its feet out of view, as in real frames of people near a camera."""
+def _out_of_view(depth_mm: np.ndarray, intr: Intrinsics, w2c: np.ndarray, origin: np.ndarray,
+                 shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(Z, X) bool each, floor cells in front of the camera out of the measured view:
+    ``below``, under the lowest row holding a measurement, between the first and last
+    measured columns (floor nearer than the view reaches: nothing seen stands on it, since
+    whatever stood there and rose into the view would be an obstacle of the cells it
+    stands on, so a person may stand there, its feet out of view, as in real frames of
+    people near a camera); ``beside``, left of the first or right of the last measured
+    column (a person's footprint may reach there: whatever stands there is out of view,
+    and so is any part of the person it could meet)."""
     rows = np.flatnonzero(np.asarray(depth_mm).any(1))
     cols = np.flatnonzero(np.asarray(depth_mm).any(0))
     if not len(rows):
-        return np.zeros(shape, bool)
+        return np.zeros(shape, bool), np.zeros(shape, bool)
     zz, xx = np.indices(shape)
     floor_pts = np.stack([origin[0] + xx * CELL_M, np.zeros(shape), origin[1] + zz * CELL_M], -1)
     cam = floor_pts @ w2c[:3, :3].T + w2c[:3, 3]
     uv = project(intr, cam)
     with np.errstate(invalid="ignore"):
-        return ((uv[..., 1] > rows[-1] + 0.5) & (uv[..., 0] >= cols[0] - 0.5)
-                & (uv[..., 0] <= cols[-1] + 0.5))
+        inside = (uv[..., 0] >= cols[0] - 0.5) & (uv[..., 0] <= cols[-1] + 0.5)
+        front = np.isfinite(uv[..., 0])
+        return (uv[..., 1] > rows[-1] + 0.5) & inside, front & ~inside
 
 
 # -- the job's backgrounds --------------------------------------------------------------

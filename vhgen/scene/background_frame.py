@@ -13,7 +13,9 @@ class FloorPlane:
     """A background's floor in its camera frame (OpenCV axes): the points X with
     ``normal . X + height_m = 0``; ``normal`` (unit) points up, towards the camera, so
     ``height_m`` is the camera's height above the floor. ``inlier_fraction``: of the
-    measured points, those within CUT sigma of it; ``rms_m``: their RMS distance."""
+    measured points (every 4th pixel of every 4th row), those on it (within 3 sigma of
+    the depth noise, facing along it: see :func:`vhgen.scene.background.estimate_floor`);
+    ``rms_m``: their RMS distance to it."""
 
     normal: tuple[float, float, float]
     height_m: float
