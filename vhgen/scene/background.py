@@ -67,7 +67,9 @@ OBSTACLE_TOP_M = 2.2  # points up to this height over the floor are in a person'
 MIN_OBSTACLE_POINTS = 3  # per cell: fewer are taken for noise of the floor
 GRID_HALF_WIDTH_M = 8.0
 GRID_DEPTH_M = 12.0
-MIN_FREE_RADIUS_M = 0.3  # a background whose free floor holds no disc this wide is left out
+# a background whose free floor holds no disc this wide is left out: a person standing
+# with the arms down needs about 0.4 m, and 9 cm more for the gap and the spot's jitter
+MIN_FREE_RADIUS_M = 0.5
 
 # -- per frame --------------------------------------------------------------------------
 BACKGROUND_DRAWS = 8  # backgrounds tried for the plan's person before another is drawn
@@ -553,10 +555,11 @@ def layout_background(rng: np.random.Generator, scene: SceneConfig, bgs: Backgro
                 planned = (first.avatar_id, first.pose_index)
             break
     if placed is None or floor is None:
-        raise BackgroundError(bgs.files[0], f"no background's free floor holds a person "
+        raise BackgroundError("scene.backgrounds", f"no person fits the free floor "
                               f"{reach[0]:g}-{reach[1]:g} m from the camera "
-                              "(camera.distance_m) after "
-                              f"{BACKGROUND_DRAWS + 2 * SUBSTITUTES} draws")
+                              f"(camera.distance_m) of {BACKGROUND_DRAWS + 2 * SUBSTITUTES} "
+                              "backgrounds drawn for the plan's person and "
+                              f"{SUBSTITUTES} others")
     people = [placed]
     for k in range(2, n_people + 1):
         a = int(rng.integers(people_from.num_avatars))
