@@ -476,7 +476,11 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
                               f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
                               f"about {2 * need_area:.1f} m^2")
-    return SceneConfig(floor=floor, room=room, people=people, props=props,
-                       min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
-                                                 lo=0.0, hi=1.0, default=0.5),
-                       backgrounds=backgrounds)
+    scene = SceneConfig(floor=floor, room=room, people=people, props=props,
+                        min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
+                                                  lo=0.0, hi=1.0, default=0.5),
+                        backgrounds=backgrounds)
+    if len(scene.class_names) > MAX_SCENE_CLASSES:
+        raise ConfigError(src, "scene.backgrounds", f"{len(scene.class_names)} scene "
+                          f"classes; the uint8 classes array holds {MAX_SCENE_CLASSES}")
+    return scene
