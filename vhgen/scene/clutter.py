@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from types import MappingProxyType
 
 import numpy as np
@@ -70,19 +70,29 @@ class ClutterShape:
     solids: tuple[tuple[np.ndarray, float, float, bool], ...]
     opening: tuple[float, float, float, float] | None = None
 
+    @cached_property
+    def inner_box(self) -> np.ndarray:
+        """(2, 2) [[x min, z min], [x max, z max]] of its footprints inside the room."""
+        p = np.concatenate([q for q, _, _, inside in self.solids if inside])
+        return np.stack([p.min(0), p.max(0)])
+
     @property
     def x_extent(self) -> tuple[float, float]:
         """(lo, hi) x of its footprints inside the room (along the wall)."""
-        xs = np.concatenate([s[0][:, 0] for s in self.solids if s[3]])
-        return float(xs.min()), float(xs.max())
+        return float(self.inner_box[0, 0]), float(self.inner_box[1, 0])
 
     @property
     def centre(self) -> np.ndarray:
         """(x, z) of the middle of its footprints inside the room."""
-        p = np.concatenate([s[0] for s in self.solids if s[3]])
-        return (p.min(0) + p.max(0)) / 2
+        return self.inner_box.mean(0)
 
-    @property
+    @cached_property
+    def inner_heights(self) -> tuple[float, float]:
+        """The lowest and highest point of its footprints inside the room."""
+        return (min(y0 for _, y0, _, inside in self.solids if inside),
+                max(y1 for _, _, y1, inside in self.solids if inside))
+
+    @cached_property
     def top(self) -> float:
         return max(s[2] for s in self.solids)
 

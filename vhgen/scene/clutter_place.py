@@ -276,11 +276,8 @@ def _candidates(rng: np.random.Generator, shape: ClutterShape, fr: _Frame
     mode_cdf, mode_names = _MODE_CDF[shape.kind]
     mode = np.minimum(np.searchsorted(mode_cdf, u[:, 0], side="right"), len(modes) - 1)
     names = mode_names[mode]
-    inner = np.concatenate([q for q, _, _, inside in shape.solids if inside])
     x0, x1 = shape.x_extent
-    cdf = fr.wall_cdf(x1 - x0, float(inner[:, 1].max()),
-                      min(y0 for _, y0, _, inside in shape.solids if inside),
-                      max(y1 for _, _, y1, inside in shape.solids if inside))
+    cdf = fr.wall_cdf(x1 - x0, float(shape.inner_box[1, 1]), *shape.inner_heights)
     if cdf is None:  # no free wall in view: only floor spots can work
         cdf = np.cumsum(fr.seen_weight.ravel()) / fr.seen_weight.sum()
         names = np.where(names == "floor", names, "none")
@@ -380,8 +377,7 @@ _MODE_CDF = {k: (np.cumsum([w for _, w in m]) / sum(w for _, w in m), np.array([
 
 def _floor_area(shape: ClutterShape) -> float:
     """The area of the box round an item's footprints inside the room, m^2."""
-    p = np.concatenate([q for q, _, _, inside in shape.solids if inside])
-    return float(np.prod(p.max(0) - p.min(0)))
+    return float(np.prod(shape.inner_box[1] - shape.inner_box[0]))
 
 
 def _hides(s: Solid) -> bool:
