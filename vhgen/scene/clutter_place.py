@@ -1,20 +1,21 @@
 """Placing clutter in a room: against walls, in corners, on walls and on the floor (pure).
 
-Each item is drawn (kind, parameters, the mesh: :mod:`vhgen.scene.clutter`), then
-:data:`CANDIDATES` placements are drawn at once, each in one of the kind's modes
-(:data:`vhgen.scene.clutter.MODES`): ``wall``: its back :data:`FLUSH_M` off a wall
-(walls drawn by length), anywhere along it; ``corner``: the same, a side against the next
-wall; ``floor``: anywhere on the floor, any heading. They are screened together: the
-footprints (:class:`~vhgen.scene.solids.Solid`, one per part of the item) inside the room,
-the item no higher than the walls (stairs excepted: they lead to an upper floor), its
-middle inside the camera's horizontal view and at least :data:`MIN_RANGE_M` from the
-camera (clutter is put where the camera sees it, so ``count`` is what a frame shows), and
-apart from everything placed before (people and props by their circles, the camera, other
-clutter). An item that hides people (:data:`HIDES_ABOVE_M`) must also leave every person
-``min_visible_fraction`` of its width in view. The first candidate that passes, in
-drawing order, is taken; an item with none is left out and counted
-(``dropped["clutter"]``). Items are placed largest first, as furniture comes before the
-things between it.
+The frame's items are drawn first (kind by weight, fewer repeats of a kind; parameters
+and mesh: :mod:`vhgen.scene.clutter`) and placed largest first, as furniture comes before
+the things between it. For each, :data:`CANDIDATES` placements are drawn at once, each in
+one of the kind's modes (:data:`vhgen.scene.clutter.MODES`): ``wall``: its back
+:data:`FLUSH_M` off a wall, centred on a stretch of wall the camera sees and no obstacle
+takes (:meth:`_Frame.wall_cdf`); ``corner``: the same, moved to the nearer end of that
+wall; ``floor``: anywhere in the camera's view, any heading. They are screened together:
+the footprints (:class:`~vhgen.scene.solids.Solid`, one per part of the item) inside the
+room, the item no higher than the walls (stairs excepted: they lead to an upper floor), at
+least :data:`VISIBLE_SHARE` of its bearings inside the camera's horizontal view and its
+nearest point :data:`MIN_RANGE_M` from the camera (clutter goes where the camera sees it,
+so ``count`` is what a frame shows), and apart from everything placed before (people and
+props by their circles, the camera, other clutter). An item that hides people
+(:data:`HIDES_ABOVE_M`) must also leave every person ``min_visible_fraction`` of its width
+in view. The first candidate that passes, in drawing order, is taken; an item with none is
+left out and counted (``dropped["clutter"]``).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ import numpy as np
 from vhgen.scene.clutter import (
     MODES,
     PIERCES_CEILING,
+    REPEAT,
+    REPEAT_DEFAULT,
     ClutterShape,
     build,
     sample_params,
@@ -37,7 +40,7 @@ from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import WALL_GAP_M, Disc
 from vhgen.scene.room import Room
 from vhgen.scene.scene_config import SceneConfig
-from vhgen.scene.solids import DISC_SIDES, Solid, disc_polygon
+from vhgen.scene.solids import DISC_SIDES, Solid
 
 CANDIDATES = 48  # placements drawn per item, screened together
 TRIES = 30  # at most this many reach the visibility test
@@ -171,9 +174,14 @@ class _Frame:
             self.samples.append(math.atan2(dx, dz) + np.linspace(-half, half, 64))
             self.dist.append(tdist)
             self.covered.append(np.zeros(64, bool))
-            for o in people + tall_discs:
+            for o in people + tall_discs:  # as placement.visible_fraction counts them
                 if o is not t:
-                    self._cover(len(self.samples) - 1, disc_polygon(o.x, o.z, o.r))
+                    ox, oz = o.x - self.eye[0], o.z - self.eye[1]
+                    odist = math.hypot(ox, oz)
+                    if odist < tdist:
+                        oh = math.asin(min(1.0, o.r / max(odist, 1e-9)))
+                        rel = _wrap(self.samples[-1] - math.atan2(ox, oz))
+                        self.covered[-1] |= np.abs(rel) <= oh
 
     def wall_cdf(self, width: float, depth: float, y0: float, y1: float) -> np.ndarray | None:
         """(4 * C,) cumulative weights of the wall cells an item of ``width`` (along the
@@ -326,7 +334,9 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     fr = _Frame(room, eye, forward, half_fov, obstacles, people, tall_discs,
                 sc.min_visible_fraction)
     n_items = int(rng.integers(cfg.count[0], cfg.count[1] + 1))
-    cum = np.cumsum(cfg.weights)
+    weights = np.array(cfg.weights, np.float64)
+    repeat = np.array([REPEAT.get(k, REPEAT_DEFAULT) for k in cfg.kinds])
+    same = np.array([[a == b for b in cfg.kinds] for a in cfg.kinds])
     roles = sc.clutter_roles
     items: list[PlacedClutter] = []
     meshes: list[StaticMesh] = []
@@ -335,9 +345,11 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     dropped = 0
     drawn = []
     for _ in range(n_items):
+        cum = np.cumsum(weights)
         pick = min(int(np.searchsorted(cum / cum[-1], rng.uniform(), side="right")),
                    len(cfg.kinds) - 1)
         kind = cfg.kinds[pick]
+        weights = np.where(same[pick], weights * repeat, weights)  # fewer repeats
         if cfg.variants:
             shape = variant(kind, cfg.fill, library_seed, int(rng.integers(cfg.variants)))
         else:
