@@ -162,20 +162,16 @@ def build_chart(rig: Rig, vertices: np.ndarray, faces: np.ndarray,
     face_region = bone_region[np.argmax(dense_weights[f].sum(axis=1), axis=1)]
     arm_t = np.full(len(v), np.nan)
     leg_t = np.full(len(v), np.nan)
-    for side, (limb_l, limb_r) in (("l", (ARM_L, HAND_L)), ("r", (ARM_R, HAND_R))):
-        names = ARM_CHAIN[side]
-        nodes = np.vstack([rig.heads[[rig.index(n) for n in names]],
-                           rig.tails[rig.index(names[-1])]])
-        unit = float(np.linalg.norm(np.diff(nodes[:3], axis=0), axis=1).sum())
-        m = np.isin(region, (limb_l, limb_r))
-        arm_t[m] = polyline_t(v[m], nodes, unit)
-    for side, (limb, foot) in (("l", (LEG_L, FOOT_L)), ("r", (LEG_R, FOOT_R))):
-        names = LEG_CHAIN[side]
-        nodes = np.vstack([rig.heads[[rig.index(n) for n in names]],
-                           rig.tails[rig.index(names[-1])]])
-        unit = float(np.linalg.norm(np.diff(nodes[:3], axis=0), axis=1).sum())
-        m = np.isin(region, (limb, foot))
-        leg_t[m] = polyline_t(v[m], nodes, unit)
+    # each limb's vertices: their position along the limb's bone chain, in units of its
+    # first two bones
+    for t, chains, regions in ((arm_t, ARM_CHAIN, {"l": (ARM_L, HAND_L), "r": (ARM_R, HAND_R)}),
+                               (leg_t, LEG_CHAIN, {"l": (LEG_L, FOOT_L), "r": (LEG_R, FOOT_R)})):
+        for side, names in chains.items():
+            nodes = np.vstack([rig.heads[[rig.index(n) for n in names]],
+                               rig.tails[rig.index(names[-1])]])
+            unit = float(np.linalg.norm(np.diff(nodes[:3], axis=0), axis=1).sum())
+            m = np.isin(region, regions[side])
+            t[m] = polyline_t(v[m], nodes, unit)
     hip_y = float(rig.heads[rig.index("LeftUpLeg"), 1])
     neck_y = float(rig.heads[rig.index("Neck"), 1])
     head_y = float(rig.heads[rig.index("Head"), 1])
