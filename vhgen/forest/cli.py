@@ -74,10 +74,44 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
+    if not (args.stores or args.real or args.nobody):
+        raise ForestError("forest eval: give test stores, --real frames or --nobody frames")
+    forest = load_any_forest(args.forest, fx=args.fx)
+    out: dict[str, Any] = {"forest": str(args.forest)}
+    if args.stores:
+        out.update(_eval_stores(forest, args))
+    if args.real or args.nobody:
+        out["real"] = _eval_real(forest, args)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(out, indent=1))
+    return 0
+
+
+def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
+    import numpy as np
+
+    from vhgen.forest.realeval import evaluate_real, load_real_frames, table
+    from vhgen.forest.trees import Predictor
+
+    frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn)
+    for f in frames:
+        if f.frame.intrinsics is not None:
+            check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
+    predictor = Predictor(forest)
+    res = evaluate_real(lambda fr: predictor.predict(np.asarray(fr.depth_mm)), frames,
+                        out_dir=args.out, colors=forest.meta.get("label_colors"),
+                        num_classes=forest.num_classes)
+    print(table(res))
+    if args.out:
+        print(f"wrote {args.out}/real_sheet.png")
+    return res
+
+
+def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
     from vhgen.forest.data import check_compatible, store_info
     from vhgen.forest.evaluate import evaluate, table
 
-    forest = load_any_forest(args.forest, fx=args.fx)
     infos = [store_info(s) for s in args.stores]
     ref = check_compatible(infos, "test")
     names = list(forest.meta.get("label_names", []))
@@ -92,13 +126,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if res["frames_per_second"]:
         print(f"inference: {res['frames_per_second']:.1f} frames/s over {res['frames']} "
               "frames (all threads)")
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({**res, "forest": str(args.forest),
-                                               "stores": args.stores}, indent=1))
     if args.out:
         print(f"wrote {args.out}/confusion.png, {args.out}/contact_sheet.png")
-    return 0
+    return {**res, "stores": args.stores}
 
 
 def read_label_input(path: str) -> Any:
@@ -194,12 +224,23 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     t.add_argument("--quiet", action="store_true", help="no per-level progress")
     t.set_defaults(func=_cmd_train)
 
-    e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores")
+    e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores and on real "
+                                     "frames (person/background)")
     e.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
-    e.add_argument("stores", nargs="+", type=A.text("store"), help="test stores")
+    e.add_argument("stores", nargs="*", type=A.text("store"), help="test stores")
+    e.add_argument("--real", nargs="+", default=[], type=A.existing_path(),
+                   metavar="PATH", help="real frames with people (PCD or 16-bit mm PNG; "
+                   "files or folders), each with a person mask (see --masks)")
+    e.add_argument("--nobody", nargs="+", default=[], type=A.existing_path(),
+                   metavar="PATH", help="real frames with nobody in them (every pixel is "
+                   "background)")
+    e.add_argument("--masks", type=A.existing_path(),
+                   help="folder of person masks, <frame name>.png (8-bit, 0 = not a person); "
+                        "default: <frame name>.mask.png beside each frame")
     e.add_argument("--json", type=A.output_path(".json"), help="write the scores here")
     e.add_argument("--out", type=A.output_path(),
-                   help="folder for confusion.png and contact_sheet.png")
+                   help="folder for confusion.png and contact_sheet.png (stores) and "
+                        "real_sheet.png (real frames)")
     e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
     e.add_argument("--fx", type=A.float_range(0, lo_open=True),
                    help="training focal length of PCL trees (for the focal-length check)")
