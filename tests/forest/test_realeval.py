@@ -108,5 +108,17 @@ def test_forest_eval_on_shared_real_frames(tmp_path, capsys, boxes_store):
     assert rows["person.pcd"]["tp"] + rows["person.pcd"]["fn"] == int(mask.sum())
     for k in ("person_iou", "person_recall", "person_precision", "background_called"):
         assert 0.0 <= res[k] <= 1.0
-    assert (out / "real_sheet.png").is_file()
+    assert (out / "real_sheet.png").is_file() and res["segment"] is False
+    # the segmentation stage: never more body pixels than the forest alone gave
+    assert main(["forest", "eval", str(forest), "--real", str(REAL / "person.pcd"),
+                 "--masks", str(MASKS), "--segment", "--json", str(out / "seg.json")]) == 0
+    seg = json.loads((out / "seg.json").read_text())["real"]
+    assert seg["segment"] is True
+    plain = rows["person.pcd"]
+    srow = seg["per_frame"][0]
+    assert srow["fp"] <= plain["fp"] and srow["tp"] + srow["fn"] == plain["tp"] + plain["fn"]
+    label = tmp_path / "label.png"
+    assert main(["forest", "label", str(forest), str(REAL / "person.pcd"), "-o", str(label),
+                 "--segment"]) == 0
+    assert np.asarray(Image.open(label)).shape == (480, 640)
     one_line_error(capsys, "forest", "eval", str(forest), match="give test stores")

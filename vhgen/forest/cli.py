@@ -89,19 +89,16 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
-    import numpy as np
-
     from vhgen.forest.realeval import evaluate_real, load_real_frames, table
-    from vhgen.forest.trees import Predictor
 
     frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn)
     for f in frames:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
-    predictor = Predictor(forest)
-    res = evaluate_real(lambda fr: predictor.predict(np.asarray(fr.depth_mm)), frames,
-                        out_dir=args.out, colors=forest.meta.get("label_colors"),
+    res = evaluate_real(labeller(forest, args.segment, args.fx), frames, out_dir=args.out,
+                        colors=forest.meta.get("label_colors"),
                         num_classes=forest.num_classes)
+    res["segment"] = bool(args.segment)
     print(table(res))
     if args.out:
         print(f"wrote {args.out}/real_sheet.png")
@@ -146,19 +143,48 @@ def read_label_input(path: str) -> Any:
     return frame
 
 
-def _cmd_label(args: argparse.Namespace) -> int:
+def frame_intrinsics(frame: Any, forest: Any, fx: float | None = None) -> Any:
+    """The intrinsics of a real frame: recovered from its cloud, else a pinhole centred
+    on the image with ``fx`` (default: the forest's training focal length)."""
+    from vhgen.camera import Intrinsics
+
+    if frame.intrinsics is not None:
+        return frame.intrinsics
+    f = float(fx if fx is not None else forest.meta.get("fx") or 525.0)
+    h, w = frame.depth_mm.shape
+    return Intrinsics(w, h, f, f, (w - 1) / 2, (h - 1) / 2)
+
+
+def labeller(forest: Any, segment: bool, fx: float | None = None) -> Any:
+    """frame -> (H, W) uint8 labels: the forest, then (``segment``) the segmentation
+    stage of :mod:`vhgen.forest.segment`."""
     import numpy as np
+
+    from vhgen.forest.segment import Segmenter
+    from vhgen.forest.trees import Predictor
+
+    predictor, seg = Predictor(forest), Segmenter()
+
+    def label(frame: Any) -> Any:
+        labels = predictor.predict(np.asarray(frame.depth_mm))
+        if segment:
+            labels = seg.apply(frame.depth_mm, frame_intrinsics(frame, forest, fx), labels)
+        return labels
+
+    return label
+
+
+def _cmd_label(args: argparse.Namespace) -> int:
     from PIL import Image
 
     from vhgen.forest.evaluate import palette_for
-    from vhgen.forest.trees import Predictor
 
     forest = load_any_forest(args.forest)
     frame = read_label_input(args.depth)
     fx = args.fx if args.fx is not None else (
         frame.intrinsics.fx if frame.intrinsics is not None else None)
     check_focal(forest, fx, args.depth)
-    labels = Predictor(forest).predict(np.asarray(frame.depth_mm))
+    labels = labeller(forest, args.segment, fx)(frame)
     img = Image.fromarray(labels, mode="P")
     pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
     img.putpalette(pal.ravel().tolist())
@@ -234,6 +260,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     e.add_argument("--nobody", nargs="+", default=[], type=A.existing_path(),
                    metavar="PATH", help="real frames with nobody in them (every pixel is "
                    "background)")
+    e.add_argument("--segment", action="store_true",
+                   help="real frames: the segmentation stage after the forest (as forest "
+                        "label --segment)")
     e.add_argument("--masks", type=A.existing_path(),
                    help="folder of person masks, <frame name>.png (8-bit, 0 = not a person); "
                         "default: <frame name>.mask.png beside each frame")
@@ -257,6 +286,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
                     help="focal length of the depth camera (px): warn if it differs from "
                          "the training one (default for a PCD: the recovered one)")
+    lb.add_argument("--segment", action="store_true",
+                    help="remove floor and walls, cluster the rest, and keep body parts "
+                         "only in clusters the forest calls a person (see README)")
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")
