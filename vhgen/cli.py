@@ -256,9 +256,28 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
     if "age_years" in values:
         values["age"] = age_from_years(values.pop("age_years"))
     shape = Shape(**values)
+    scale, clothing = 1.0, tuple(args.clothing or ())
+    outfit = None
+    if args.avatar_params is not None:  # a manifest row's avatar_params: that very body
+        p = args.avatar_params
+        try:
+            shape = Shape.from_dict(p["shape"])
+            scale, clothing, outfit = float(p["scale"]), tuple(p["clothing"]), p.get("outfit")
+        except (KeyError, TypeError, ValueError) as e:
+            raise ConfigError(None, "--avatar-params", f"not a manifest's avatar_params "
+                                                       f"({type(e).__name__}: {e})") from None
+    elif args.wear:
+        from vhgen.body.wardrobe import ITEMS, parse_outfit
+        from vhgen.scene.geometry import SCENE_CLASSES
+
+        wanted = dict(args.wear)
+        cfg = parse_outfit({i: {"probability": 1.0, "kinds": [wanted[i]]} if i in wanted
+                            else False for i in ITEMS}, None).with_class(len(SCENE_CLASSES))
+        outfit = cfg.sample(np.random.default_rng(args.seed))
     asset_dir = resolve_asset_dir(args.assets)
     scheme = LabelScheme.load(args.labels)
-    body = build_body(asset_dir, scheme, shape=shape, clothing=tuple(args.clothing or ()))
+    body = build_body(asset_dir, scheme, shape=shape, scale=scale, clothing=clothing,
+                      outfit=outfit)
     rot = root = None
     if args.pose:
         from vhgen.mocap.bvh import read_bvh
@@ -274,7 +293,9 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
         r, p = rt.apply(motion, frames=np.array([frame]))
         rot, root = r[0], p[0] * body.hip_drop / base.hip_drop
     out = export_mesh(posed_mesh(body, rot, root, args.skinning), args.output)
-    print(f"wrote {out} ({len(body.vertices)} vertices, {len(body.faces)} triangles)")
+    worn = ", ".join(f"{k} {v['kind']}" for k, v in (outfit or {}).items() if v)
+    print(f"wrote {out} ({len(body.vertices)} vertices, {len(body.faces)} triangles"
+          f"{'; wearing ' + worn if worn else ''})")
     return 0
 
 
@@ -291,6 +312,15 @@ def _add_avatar(sub: _Sub) -> None:
     ex.add_argument("--labels", type=A.config_name("labels"), default="shotton31",
                     help="label scheme (configs/labels)")
     ex.add_argument("--clothing", nargs="*", choices=["tights", "skirt"])
+    ex.add_argument("--wear", nargs="*", type=A.wear(),
+                    help="dress the avatar: ITEM=KIND, e.g. top=jumper outer=coat "
+                         "bottom=skirt shoes=boots hair=long hat=cap carried=backpack; "
+                         "parameters drawn from their default ranges with --seed")
+    ex.add_argument("--seed", type=A.int_range(0, 2**63 - 1), default=0,
+                    help="seed of the outfit's parameters (with --wear)")
+    ex.add_argument("--avatar-params", type=A.json_object(),
+                    help="rebuild an avatar of a dataset: a manifest row's avatar_params "
+                         "(JSON, or a .json file): shape, scale, helpers and outfit")
     ex.add_argument("--skinning", choices=["lbs", "dqs"], default="lbs")
     ex.add_argument("--assets", type=A.existing_path(), help="MPFB2 asset folder")
 

@@ -254,3 +254,43 @@ def config_name(kind: str) -> ArgType:
     return ArgType(f"{kind} config", convert, {"scenes": "default", "sensors": "ideal",
                                                "labels": "shotton31"}.get(kind, "x"),
                    ["", "no_such_config", "/nonexistent/vhgen/x.yaml"])
+
+
+def _wear(text: str) -> tuple[str, str]:
+    from vhgen.body.wardrobe import KINDS
+
+    item, sep, kind = text.partition("=")
+    if not sep or item not in KINDS or kind not in KINDS[item]:
+        choices = "; ".join(f"{i}: {' '.join(k)}" for i, k in KINDS.items())
+        raise _fail(text, f"ITEM=KIND ({choices})")
+    return item, kind
+
+
+def wear() -> ArgType:
+    """``ITEM=KIND``: an item of the wardrobe and one of its kinds (``top=coat`` is not:
+    ``outer=coat`` is; see :mod:`vhgen.body.wardrobe`)."""
+    return ArgType("item=kind", _wear, "top=shirt", ["", "abc", "top=", "top=coat", "hat=crown"])
+
+
+def _json_object(text: str) -> dict:
+    import json
+
+    src = text
+    if text.endswith(".json"):
+        try:
+            src = Path(text).read_text()
+        except OSError as e:
+            raise _fail(text, f"a readable JSON file ({e.strerror})") from None
+    try:
+        value = json.loads(src)
+    except ValueError:
+        value = None
+    if not isinstance(value, dict):
+        raise _fail(text, "a JSON object, or a .json file holding one")
+    return value
+
+
+def json_object() -> ArgType:
+    """A JSON object given inline or as a path to a ``.json`` file."""
+    return ArgType("JSON object", _json_object, '{"scale": 1.0}',
+                   ["", "abc", "[1, 2]", "/nonexistent/vhgen/x.json"])

@@ -7,13 +7,14 @@ errors. The core never handles raw dicts.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from vhgen.body.shape import ShapeSampler
+from vhgen.body.wardrobe import CARRIED_CLASS, OutfitConfig, parse_outfit
 from vhgen.camera import CameraConfig
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
@@ -88,6 +89,7 @@ class AvatarConfig:
     shape: ShapeSampler = field(default_factory=ShapeSampler)
     tights_probability: float = 0.0
     skirt_probability: float = 0.0
+    outfit: OutfitConfig = field(default_factory=OutfitConfig)  # avatars.outfit (wardrobe)
 
 
 @dataclass(frozen=True)
@@ -120,6 +122,14 @@ class JobConfig:
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
+
+    @property
+    def class_names(self) -> tuple[str, ...]:
+        """The names of the ``classes`` array's ids: the scene's, then ``carried`` when the
+        avatars carry things that are not the person (:mod:`vhgen.body.wardrobe`)."""
+        names = self.scene.class_names
+        own = self.avatars.outfit.has_own_class and CARRIED_CLASS not in names
+        return names + ((CARRIED_CLASS,) if own else ())
 
     @classmethod
     def load(cls, path: str | Path, **overrides: Any) -> JobConfig:
@@ -155,7 +165,7 @@ class JobConfig:
         ad = ShapeSampler()
         check_keys(av, {"count", "scale", "gender", "age_years", "muscle", "weight", "height",
                         "proportions", "ethnic_concentration", "tights_probability",
-                        "skirt_probability"}, set(), path, "avatars.")
+                        "skirt_probability", "outfit"}, set(), path, "avatars.")
         unit = {k: _range(av, k, path, "avatars.", getattr(ad, k), lo=0.0, hi=1.0)
                 for k in ("gender", "muscle", "weight", "height", "proportions")}
         shape = ShapeSampler(
@@ -169,9 +179,17 @@ class JobConfig:
             tights_probability=_num(av, "tights_probability", path, "avatars.", lo=0, hi=1,
                                     default=0.0),
             skirt_probability=_num(av, "skirt_probability", path, "avatars.", lo=0, hi=1,
-                                   default=0.0))
+                                   default=0.0),
+            outfit=parse_outfit(av.get("outfit"), path))
         camera = _camera(d.get("camera") or {}, path)
         scene = _scene(d.get("scene") or {}, path, camera)
+        if avatars.outfit.has_own_class:  # carried things: the class after the scene's
+            names = scene.class_names  # (or the props' own class of that name)
+            cid = names.index(CARRIED_CLASS) if CARRIED_CLASS in names else len(names)
+            if cid >= MAX_SCENE_CLASSES:
+                raise ConfigError(path, "avatars.outfit.carried", f"no class id left for "
+                                  f"carried things: the scene has {len(names)} classes")
+            avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
         check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
         ren = d.get("render") or {}

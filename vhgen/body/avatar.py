@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vhgen.body.chart import BodyChart, build_chart
 from vhgen.body.labels import LabelScheme
 from vhgen.body.mesh import (
     BaseMesh,
@@ -21,15 +22,25 @@ from vhgen.body.mesh import (
     truncate_weights,
 )
 from vhgen.body.shape import MacroTargets, Shape
-from vhgen.errors import ConfigError
+from vhgen.errors import AssetError, ConfigError
 
 BODY_GROUP = "body"
+HAIR_GUIDE = "helper-hair"  # MakeHuman's long-hair helper: how wide long hair falls
 CLOTHING_GROUPS = {"tights": "helper-tights", "skirt": "helper-skirt"}
 
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """vertices (V,3) float64 metres; faces (T,3) int64; joints/weights (V,K); face_labels (T,)."""
+    """vertices (V,3) float64 metres; faces (T,3) int64; joints/weights (V,K); face_labels (T,).
+
+    A dressed body (:mod:`vhgen.body.outfit`) also has ``offsets`` (V, 3): how far each
+    vertex lies out from the skin under it (a garment's thickness; the skin is
+    ``vertices - offsets``), ``press`` (V,) uint8: which of its own hands may press the
+    garment there towards the skin (:func:`vhgen.body.garments.press_mask`), and
+    ``face_classes`` (T,) uint8: a triangle's scene class when it is not the person's
+    (carried things; 0 = the person's). All three are None on a bare body. The outfit's
+    own parts are the last ``appended_faces`` triangles (on vertices of their own).
+    """
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -39,6 +50,10 @@ class Body:
     rig: Rig
     scheme: LabelScheme
     params: dict
+    offsets: np.ndarray | None = None
+    press: np.ndarray | None = None
+    face_classes: np.ndarray | None = None
+    appended_faces: int = 0
 
     @property
     def num_bones(self) -> int:
@@ -54,8 +69,10 @@ class Body:
     def fingerprint(self) -> str:
         """sha1 of the arrays, to tell two bodies apart in a manifest."""
         h = hashlib.sha1()
-        for a in (self.vertices, self.faces, self.joints, self.weights, self.face_labels):
-            h.update(np.ascontiguousarray(a).tobytes())
+        for a in (self.vertices, self.faces, self.joints, self.weights, self.face_labels,
+                  self.offsets, self.press, self.face_classes):
+            if a is not None:
+                h.update(np.ascontiguousarray(a).tobytes())
         return h.hexdigest()[:16]
 
 
@@ -115,14 +132,30 @@ def _labels(asset_dir: Path, scheme: LabelScheme, clothing: tuple[str, ...],
     return labels
 
 
+@functools.lru_cache(maxsize=4)
+def _chart(asset_dir: Path, rig_name: str) -> BodyChart:
+    """The garment chart of the body mesh (its body vertices and triangles come first in
+    every topology), on the unshaped base mesh: once per process."""
+    base = _base(asset_dir)
+    faces = base.faces[base.face_group == base.groups.index(BODY_GROUP)]
+    nv = int(faces.max()) + 1
+    if np.unique(faces).size != nv:
+        raise AssetError("base.obj: the body's vertices are not the first of the mesh")
+    rig = load_rig(asset_dir, base.vertices, base.vertex_groups, rig_name)
+    dense = load_weights(asset_dir, rig, len(base.vertices), rig_name)
+    return build_chart(rig, base.vertices[:nv], faces, dense[:nv])
+
+
 def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = None,
                scale: float = 1.0, clothing: tuple[str, ...] = (), rig_name: str = "cmu_mb",
-               max_influences: int = 4) -> Body:
+               max_influences: int = 4, outfit: dict | None = None) -> Body:
     """Assemble a body from MPFB2 assets.
 
     shape : MakeHuman macro modifiers (None: the unmodified base mesh).
     scale : uniform scale about the point between the feet, after the shape.
     clothing : optional helper geometry to include and label ("tights", "skirt").
+    outfit : garments, hair, shoes and carried things (:mod:`vhgen.body.wardrobe` draws
+        them, ``avatar_params["outfit"]`` records them); None or empty: a bare body.
     Joint positions come from the joint cubes of the shaped mesh, so the rig fits it.
     """
     asset_dir = Path(asset_dir)
@@ -143,12 +176,28 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
               "clothing": list(clothing)}
     if shape is not None:
         params["shape"] = shape.to_dict()
-    return Body(vertices=verts, faces=faces, joints=joints, weights=weights,
-                face_labels=labels, rig=rig, scheme=scheme, params=params)
+    if not outfit:
+        return Body(vertices=verts, faces=faces, joints=joints, weights=weights,
+                    face_labels=labels, rig=rig, scheme=scheme, params=params)
+    from vhgen.body.outfit import dress_arrays, make_fit
+
+    chart = _chart(asset_dir, rig_name)
+    fit = make_fit(verts, faces[:len(chart.face_region)], joints, weights, rig, chart)
+    guide = verts_all[base.vertex_groups[HAIR_GUIDE]]
+    d = dress_arrays(verts, faces, joints, weights, labels, fit, outfit, guide)
+    for a in d.values():
+        a.setflags(write=False)
+    params["outfit"] = outfit
+    return Body(vertices=d["vertices"], faces=d["faces"], joints=d["joints"],
+                weights=d["weights"], face_labels=d["face_labels"], rig=rig, scheme=scheme,
+                params=params, offsets=d["offsets"], press=d["press"],
+                face_classes=d["face_classes"], appended_faces=len(d["faces"]) - len(faces))
 
 
 def build_avatar(asset_dir: str | Path, scheme: LabelScheme, avatar: dict) -> Body:
     """The shaped body of one avatar of a job's plan (``Plan.avatars[i]``: ``shape``,
-    ``scale``, ``clothing``): the one recipe the driver and the workers share."""
+    ``scale``, ``clothing``, and ``outfit`` when the job dresses its avatars): the one
+    recipe the driver and the workers share."""
     return build_body(Path(asset_dir), scheme, shape=Shape.from_dict(avatar["shape"]),
-                      scale=avatar["scale"], clothing=tuple(avatar["clothing"]))
+                      scale=avatar["scale"], clothing=tuple(avatar["clothing"]),
+                      outfit=avatar.get("outfit"))

@@ -24,14 +24,18 @@ def frame_seed(job_seed: int, avatar_id: int, pose_index: int, camera: int = 0) 
 
 
 def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
-    """Parameters of one avatar (shape, scale, clothing), drawn from its own seeded stream;
-    the body is rebuilt from them exactly (:func:`vhgen.body.avatar.build_body`)."""
+    """Parameters of one avatar (shape, scale, clothing, and its outfit when the config
+    has ``avatars.outfit``), drawn from its own seeded stream; the body is rebuilt from
+    them exactly (:func:`vhgen.body.avatar.build_avatar`)."""
     rng = np.random.default_rng(np.random.SeedSequence([job_seed, _AVATAR_STREAM, avatar_id]))
     shape = cfg.shape.sample(rng)
     scale = float(rng.uniform(*cfg.scale))
     clothing = [c for c, p in (("tights", cfg.tights_probability),
                                ("skirt", cfg.skirt_probability)) if rng.uniform() < p]
-    return {"shape": shape.to_dict(), "scale": scale, "clothing": clothing}
+    params = {"shape": shape.to_dict(), "scale": scale, "clothing": clothing}
+    if cfg.outfit.enabled:  # drawn after the rest: configs without an outfit keep their avatars
+        params["outfit"] = cfg.outfit.sample(rng)
+    return params
 
 
 @dataclass(frozen=True)

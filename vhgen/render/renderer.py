@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.body.contact import CLOTH_MARGIN_M, Contacts
 from vhgen.body.skinning import dual_quaternions
 from vhgen.camera import Intrinsics
 from vhgen.errors import RenderError
@@ -83,8 +84,10 @@ class GpuMesh:
     """A mesh resident on the GPU: its vertex array, buffers and per-triangle label texture.
 
     ``static`` meshes carry scene classes in the texture and are drawn with one rigid
-    transform; skinned meshes carry body-part labels. ``ranges`` are the runs of
-    triangles drawn with one culling state: (first triangle, count, face culled or None).
+    transform; skinned meshes carry body-part labels (and a scene class per triangle
+    where it is not the draw's). ``ranges`` are the runs of triangles drawn with one
+    culling state: (first triangle, count, face culled or None). A dressed body
+    (``contacts`` set) is drawn by the garment program (:mod:`vhgen.body.contact`).
     """
 
     vao: Any
@@ -92,11 +95,30 @@ class GpuMesh:
     label_tex: Any
     static: bool
     ranges: tuple[tuple[int, int, str | None], ...] = ()
+    contacts: Contacts | None = None
 
     def release(self) -> None:
         for obj in self.objects:
             obj.release()
         self.objects = []
+
+
+def contact_uniforms(contacts: Contacts, bones: np.ndarray) -> dict[str, bytes]:
+    """The garment program's contact uniforms for one draw's (B, 4, 4) bone matrices
+    (camera frame): the hands (``press_*``) and the legs (``push_*``)."""
+    p = contacts.posed(bones)
+    # a sphere holding each flattened capsule: centre, half its length + its half width
+    centre = 0.5 * (p["hand_a"] + p["hand_b"])
+    reach = (0.5 * np.linalg.norm(p["hand_b"] - p["hand_a"], axis=1)
+             + contacts.hand_radius * np.maximum(contacts.hand_width, 1.0))
+    return {
+        "press_reach": np.column_stack([centre, reach]).astype("f4").tobytes(),
+        "press_a": np.column_stack([p["hand_a"], contacts.hand_radius]).astype("f4").tobytes(),
+        "press_b": np.column_stack([p["hand_b"], contacts.hand_width]).astype("f4").tobytes(),
+        "press_lateral": np.ascontiguousarray(p["hand_lateral"], dtype="f4").tobytes(),
+        "push_a": np.column_stack([p["leg_a"], contacts.leg_ra]).astype("f4").tobytes(),
+        "push_b": np.column_stack([p["leg_b"], contacts.leg_rb]).astype("f4").tobytes(),
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,26 +195,52 @@ class DepthLabelRenderer:
         self.fbo = ctx.framebuffer(color_attachments=[self.color, self.ids_tex],
                                    depth_attachment=self.depth)
         self.program: Any = None
+        self.garment_program: Any = None  # compiled when the first dressed body arrives
         self.num_bones = 0
         self._single: GpuMesh | None = None
         self._static: tuple[GpuMesh, int, int] | None = None  # (mesh, vertices, triangles)
         self._topologies: dict[tuple, tuple[tuple[np.ndarray, np.ndarray], np.ndarray]] = {}
 
-    def _compile(self, num_bones: int) -> None:
-        if self.program is not None and num_bones == self.num_bones:
-            return
-        if self.program is not None:
-            self.program.release()
+    def _program(self, num_bones: int, garments: bool):
         defs = _defines(num_bones, self.skinning)
         if self.want_incidence:
             defs["WANT_INCIDENCE"] = 1
-        self.program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
-                                        fragment_shader=_shader("skin.frag", defs))
-        self.program["face_labels"].value = 0
-        self.program["projection"].write(self.projection.T.astype("f4").tobytes())
-        self.num_bones = num_bones
+        if garments:
+            defs["GARMENTS"] = 1
+            defs["CLOTH_MARGIN"] = f"{CLOTH_MARGIN_M!r}"
+        program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
+                                   fragment_shader=_shader("skin.frag", defs))
+        program["face_labels"].value = 0
+        program["projection"].write(self.projection.T.astype("f4").tobytes())
+        return program
 
-    def _cull_ranges(self, vertices, faces, labels, cull: bool
+    def _compile(self, num_bones: int, garments: bool = False) -> None:
+        if self.program is None or num_bones != self.num_bones:
+            for p in (self.program, self.garment_program):
+                if p is not None:
+                    p.release()
+            self.garment_program = None
+            self.program = self._program(num_bones, False)
+            self.num_bones = num_bones
+        if garments and self.garment_program is None:
+            self.garment_program = self._program(num_bones, True)
+
+    def _topology(self, faces: np.ndarray, num_vertices: int
+                  ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """The closed components and the vertex-cache position of each triangle of a
+        topology, cached (avatars share their topology: found once, ~60 ms)."""
+        key = (faces.shape, hashlib.sha1(np.ascontiguousarray(faces).tobytes()).digest())
+        cached = self._topologies.get(key)
+        if cached is None:
+            position = np.empty(len(faces), np.int64)
+            position[vertex_cache_order(faces, num_vertices)] = np.arange(len(faces))
+            cached = (closed_components(faces, num_vertices), position)
+            if len(self._topologies) >= 8:
+                self._topologies.pop(next(iter(self._topologies)))
+            self._topologies[key] = cached
+        return cached
+
+    def _cull_ranges(self, vertices, faces, labels, cull: bool, shared: int = 0
                      ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[int, int, str | None], ...]]:
         """Faces and labels reordered so that triangles of closed surfaces come first, each
         run in vertex-cache order (:func:`~vhgen.scene.topology.vertex_cache_order`: the
@@ -204,23 +252,28 @@ class DepthLabelRenderer:
         ids identical; 0-3 silhouette pixels a frame where a far-side triangle used to tie
         the depth test now show the near side, < 0.4 mm apart). The projection does not
         flip y, so a triangle wound counter-clockwise seen from outside appears clockwise
-        on screen when it faces the camera: GL's "back"; the far side is GL's "front"."""
+        on screen when it faces the camera: GL's "back"; the far side is GL's "front".
+        ``shared``: the first triangles are a topology other meshes share (a body under
+        the appended parts of its outfit, which use vertices of their own)."""
         faces = np.asarray(faces)
         if not cull or len(faces) == 0:
             return faces, labels, ((0, len(faces), None),)
         p = self.projection
         far_side_of_outward = "front" if p[0, 0] * p[1, 1] > 0 else "back"
         near_side = {"front": "back", "back": "front"}[far_side_of_outward]
-        key = (faces.shape, hashlib.sha1(np.ascontiguousarray(faces).tobytes()).digest())
-        cached = self._topologies.get(key)
-        if cached is None:  # avatars share their topology: found once, ~60 ms
-            position = np.empty(len(faces), np.int64)
-            position[vertex_cache_order(faces, len(vertices))] = np.arange(len(faces))
-            cached = (closed_components(faces, len(vertices)), position)
-            if len(self._topologies) >= 8:
-                self._topologies.pop(next(iter(self._topologies)))
-            self._topologies[key] = cached
-        topology, position = cached
+        if 0 < shared < len(faces):
+            # a dressed body: the body's topology (shared by every avatar, cached) and its
+            # own small parts (their vertices are their own: separate components)
+            (head_comp, head_closed), head_pos = self._topology(faces[:shared], len(vertices))
+            tail = faces[shared:]
+            tail_comp, tail_closed = closed_components(tail, len(vertices))
+            tail_pos = np.empty(len(tail), np.int64)
+            tail_pos[vertex_cache_order(tail, len(vertices))] = np.arange(len(tail))
+            topology = (np.concatenate([head_comp, tail_comp + len(head_closed)]),
+                        np.concatenate([head_closed, tail_closed]))
+            position = np.concatenate([head_pos, tail_pos + shared])
+        else:
+            topology, position = self._topology(faces, len(vertices))
         side = closed_sides(vertices, faces, topology)
         rank = np.where(side == OUTWARD, 0, np.where(side == INWARD, 1, 2))
         order = np.lexsort((position, rank))
@@ -234,13 +287,21 @@ class DepthLabelRenderer:
         return faces[order], labels[order], tuple(ranges)
 
     def upload(self, vertices, faces, joints, weights, face_labels, num_bones: int,
-               static: bool = False, cull: bool = True) -> GpuMesh:
+               static: bool = False, cull: bool = True, face_classes=None, offsets=None,
+               press=None, contacts: Contacts | None = None, shared: int = 0) -> GpuMesh:
         """Put a mesh on the GPU: vertices (V,3), faces (T,3), joints (V,4) int, weights
         (V,4), face_labels (T,) uint8 (body parts, or scene classes when ``static``), for a
         rig of ``num_bones`` bones. All meshes of one renderer share the rig size.
         ``cull``: the far side of closed surfaces is culled (open ones never are; skinning
-        is rigid per bone, so a closed surface stays closed and keeps its facing)."""
-        import moderngl
+        is rigid per bone, so a closed surface stays closed and keeps its facing).
+
+        A dressed body (:class:`vhgen.body.avatar.Body`) also gives ``face_classes`` (T,)
+        uint8 (a triangle's own scene class, 0 = the draw's), ``offsets`` (V, 3) (the
+        garment's thickness over the skin at each vertex), ``press`` (V,) uint8 (its
+        contact bits) and its ``contacts``: it is drawn by the garment program, where a
+        hand resting on a garment presses it in and legs push skirts out
+        (:mod:`vhgen.body.contact`, ``skin.vert``); ``shared``: its first triangles are
+        the body's topology, the rest its outfit's own parts (found once per topology)."""
 
         joints = np.asarray(joints)
         if joints.ndim != 2 or joints.shape[1] != 4:
@@ -248,28 +309,52 @@ class DepthLabelRenderer:
                               f"{joints.shape}")
         if joints.max() >= num_bones or joints.min() < 0:
             raise RenderError("joint index out of range of the bone array")
-        self._compile(int(num_bones))
+        dressed = offsets is not None
+        if dressed and contacts is None:
+            raise RenderError("a mesh with garment offsets needs its contacts")
+        self._compile(int(num_bones), dressed)
+        program = self.garment_program if dressed else self.program
         labels = np.asarray(face_labels, dtype=np.uint8)
-        faces, labels, ranges = self._cull_ranges(vertices, faces, labels, cull)
+        if face_classes is not None:
+            # two bytes per triangle: part label, own scene class (0 = the draw's)
+            labels = np.column_stack([labels, np.asarray(face_classes, dtype=np.uint8)])
+        faces, labels, ranges = self._cull_ranges(vertices, faces, labels, cull, shared)
         ctx = self.ctx
-        vbo_pos = ctx.buffer(np.ascontiguousarray(vertices, dtype="f4").tobytes())
+        position = np.asarray(vertices, np.float64)
+        buffers = []
+        if dressed:
+            extra = np.column_stack([np.asarray(offsets, np.float64),
+                                     np.asarray(press, np.float64)])
+            buffers.append((ctx.buffer(np.ascontiguousarray(extra, dtype="f4").tobytes()),
+                            "4f", "in_offset"))
+        vbo_pos = ctx.buffer(np.ascontiguousarray(position, dtype="f4").tobytes())
         vbo_joints = ctx.buffer(np.ascontiguousarray(joints, dtype="i4").tobytes())
         vbo_weights = ctx.buffer(np.ascontiguousarray(weights, dtype="f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(faces, dtype="u4").tobytes())
-        vao = ctx.vertex_array(self.program, [
+        vao = ctx.vertex_array(program, [
             (vbo_pos, "3f", "in_position"),
             (vbo_joints, "4i", "in_joints"),
             (vbo_weights, "4f", "in_weights"),
-        ], index_buffer=ibo, index_element_size=4)
-        rows = -(-len(labels) // LABEL_TEX_WIDTH)
-        padded = np.zeros(rows * LABEL_TEX_WIDTH, dtype=np.uint8)
-        padded[:len(labels)] = labels
-        label_tex = ctx.texture((LABEL_TEX_WIDTH, rows), 1, padded.tobytes(), dtype="u1")
-        label_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        mesh = GpuMesh(vao, [vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex],
-                       label_tex, static, ranges)
+        ] + buffers, index_buffer=ibo, index_element_size=4)
+        label_tex = self._label_texture(labels)
+        mesh = GpuMesh(vao, [vao, ibo, vbo_pos, vbo_joints, vbo_weights, label_tex]
+                       + [b[0] for b in buffers], label_tex, static, ranges,
+                       contacts if dressed else None)
         self._check("uploading the mesh")
         return mesh
+
+    def _label_texture(self, labels: np.ndarray):
+        """The per-triangle texture (RG8UI, LABEL_TEX_WIDTH texels a row): r = label (or
+        a static mesh's class), g = the triangle's own scene class (0 = the draw's)."""
+        import moderngl
+
+        rows = max(1, -(-len(labels) // LABEL_TEX_WIDTH))
+        padded = np.zeros((rows * LABEL_TEX_WIDTH, 2), dtype=np.uint8)
+        cols = labels.reshape(len(labels), -1)
+        padded[:len(labels), :cols.shape[1]] = cols
+        tex = self.ctx.texture((LABEL_TEX_WIDTH, rows), 2, padded.tobytes(), dtype="u1")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return tex
 
     def upload_static(self, vertices, faces, face_classes) -> GpuMesh:
         """A rigid mesh in world coordinates, (V,3) float, (T,3) int, (T,) uint8 classes."""
@@ -307,8 +392,8 @@ class DepthLabelRenderer:
         vbo_pos, ibo = mesh.objects[2], mesh.objects[1]
         vbo_pos.write(v.tobytes())
         ibo.write(f.tobytes())
-        padded = np.zeros(mesh.label_tex.width * mesh.label_tex.height, np.uint8)
-        padded[:len(labels)] = labels
+        padded = np.zeros((mesh.label_tex.width * mesh.label_tex.height, 2), np.uint8)
+        padded[:len(labels), 0] = labels
         mesh.label_tex.write(padded.tobytes())
         self._check("writing the static geometry")
         return GpuMesh(mesh.vao, [], mesh.label_tex, True, ((0, len(f), None),))
@@ -346,10 +431,14 @@ class DepthLabelRenderer:
             elif m.shape != (self.num_bones, 4, 4):
                 raise RenderError(f"expected ({self.num_bones}, 4, 4) bone matrices, "
                                   f"got {m.shape}")
-            write_bones(self.program, m, self.skinning)
-            self.program["labels_are_classes"].value = int(d.mesh.static)
-            self.program["instance_id"].value = int(d.instance)
-            self.program["draw_class"].value = int(d.draw_class)
+            program = self.program if d.mesh.contacts is None else self.garment_program
+            write_bones(program, m, self.skinning)
+            if d.mesh.contacts is not None:
+                for name, data in contact_uniforms(d.mesh.contacts, m).items():
+                    program[name].write(data)
+            program["labels_are_classes"].value = int(d.mesh.static)
+            program["instance_id"].value = int(d.instance)
+            program["draw_class"].value = int(d.draw_class)
             d.mesh.label_tex.use(0)
             for first, count, culled in d.mesh.ranges:
                 if culled is not None:
@@ -358,7 +447,7 @@ class DepthLabelRenderer:
                     culling = culled is not None
                     (ctx.enable if culling else ctx.disable)(moderngl.CULL_FACE)
                 # gl_PrimitiveID restarts at 0 in every draw call
-                self.program["prim_offset"].value = first
+                program["prim_offset"].value = first
                 d.mesh.vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
         if culling:
             ctx.disable(moderngl.CULL_FACE)
@@ -400,10 +489,12 @@ class DepthLabelRenderer:
         if self._static is not None:
             self._static[0].release()
             self._static = None
-        for obj in (self.program, self.fbo, self.color, self.ids_tex, self.depth):
+        for obj in (self.program, self.garment_program, self.fbo, self.color, self.ids_tex,
+                    self.depth):
             if obj is not None:
                 obj.release()
         self.program = None
+        self.garment_program = None
 
 
 class GPUSkinner:

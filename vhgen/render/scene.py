@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vhgen.body.avatar import Body
+from vhgen.body.contact import body_contacts
 from vhgen.camera import world_to_projector
 from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
@@ -40,6 +41,24 @@ def merge_static(meshes: tuple[StaticMesh, ...] | list[StaticMesh]
             np.concatenate([np.asarray(m.face_classes, np.uint8) for m in meshes]))
 
 
+def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
+    """Put a body on the GPU; a dressed one (:mod:`vhgen.body.outfit`) with its garment
+    offsets, its hands and its triangles' own scene classes (anything with a body's
+    arrays will do: the dressed ones are optional)."""
+    offsets = getattr(body, "offsets", None)
+    classes = getattr(body, "face_classes", None)
+    shared = len(body.faces) - getattr(body, "appended_faces", 0)
+    if offsets is None or not offsets.any():  # nothing to press: the plain program
+        return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
+                               body.face_labels, body.num_bones, face_classes=classes,
+                               shared=shared)
+    return renderer.upload(body.vertices, body.faces, body.joints, body.weights,
+                           body.face_labels, body.num_bones, face_classes=classes,
+                           offsets=offsets, press=body.press, shared=shared,
+                           contacts=body_contacts(body.rig, body.vertices - offsets,
+                                                  body.joints))
+
+
 class SceneRenderer:
     """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
     last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU)."""
@@ -56,9 +75,7 @@ class SceneRenderer:
         for a in need:  # most recently used at the end
             mesh = self._meshes.pop(a, None)
             if mesh is None:
-                b = self.body_of(a)
-                mesh = self.renderer.upload(b.vertices, b.faces, b.joints, b.weights,
-                                            b.face_labels, b.num_bones)
+                mesh = upload_body(self.renderer, self.body_of(a))
             self._meshes[a] = mesh
         # the last len(need) entries are this frame's: only older ones go
         while len(self._meshes) > max(MAX_RESIDENT_AVATARS, len(need)):

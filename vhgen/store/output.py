@@ -75,7 +75,7 @@ def config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict[str, Any]:
         "label_scheme": scheme.name,
         "label_names": scheme.names,
         "label_colors": scheme.palette.tolist(),
-        "class_names": list(cfg.scene.class_names),
+        "class_names": list(cfg.class_names),
         "sensor": cfg.sensor.to_dict(),
         "depth_units": "millimetre (uint16), 0 = no measurement",
         "frames_per_shard": cfg.frames_per_shard,

@@ -4,12 +4,14 @@
 // scene class << 16, stored as a float (R32F; exact, as it is < 2^24). Clear value 0 =
 // no hit. Labels come from a per-triangle texture indexed by gl_PrimitiveID (+ the
 // draw's first triangle: a mesh may be drawn in runs with different culling), so they are
-// never interpolated or blended across a part boundary. For a person the texel is the
-// body part and the class is the uniform draw_class; for static geometry
-// (labels_are_classes = 1) the texel is the triangle's scene class and the part is 0.
+// never interpolated or blended across a part boundary. For a person the texel's r is the
+// body part and its g the triangle's scene class, 0 for the draw's (the uniform
+// draw_class); a triangle of its own class and no part (a carried thing that is not the
+// person) has no instance either. For static geometry (labels_are_classes = 1) r is the
+// triangle's scene class and the part is 0.
 // One packed channel instead of three float channels: fewer bytes written per fragment
 // and read back per frame, and no packing on the CPU.
-uniform usampler2D face_labels;  // R8UI, row-major, LABEL_TEX_WIDTH triangles per row
+uniform usampler2D face_labels;  // RG8UI, row-major, LABEL_TEX_WIDTH triangles per row
 uniform int labels_are_classes;
 uniform uint instance_id;
 uniform uint draw_class;
@@ -22,8 +24,15 @@ layout(location = 1) out float out_ids;
 
 void main() {
     int id = gl_PrimitiveID + prim_offset;
-    uint t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).r;
-    uint ids = labels_are_classes != 0 ? t << 16u : t | (instance_id << 8u) | (draw_class << 16u);
+    uvec2 t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).rg;
+    uint ids;
+    if (labels_are_classes != 0) {
+        ids = t.r << 16u;
+    } else {
+        uint cls = t.g != 0u ? t.g : draw_class;
+        uint instance = (t.g != 0u && t.r == 0u) ? 0u : instance_id;
+        ids = t.r | (instance << 8u) | (cls << 16u);
+    }
     out_ids = float(ids);
 #ifdef WANT_INCIDENCE
     // |cos| of the angle between the flat face normal and this pixel's viewing ray (v_cam

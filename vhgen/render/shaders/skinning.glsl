@@ -22,6 +22,18 @@ vec3 skin_position(vec3 p, ivec4 j, vec4 w) {
     vec3 t = 2.0 * (br.w * bd.xyz - bd.w * br.xyz + cross(br.xyz, bd.xyz));
     return p + 2.0 * cross(br.xyz, cross(br.xyz, p) + br.w * p) + t;
 }
+
+// A vector at a vertex turned by the vertex's blended rotation (DQS is affine per vertex:
+// skin_position(p + d) = skin_position(p) + skin_vector(d)).
+vec3 skin_vector(vec3 d, ivec4 j, vec4 w) {
+    vec4 r0 = dq_real[j.x];
+    vec4 br = w.x * r0;
+    for (int k = 1; k < 4; ++k) {
+        br += (dot(dq_real[j[k]], r0) < 0.0 ? -w[k] : w[k]) * dq_real[j[k]];
+    }
+    br /= length(br);
+    return d + 2.0 * cross(br.xyz, cross(br.xyz, d) + br.w * d);
+}
 #else
 uniform mat4 bones[MAX_BONES];
 
@@ -30,5 +42,12 @@ vec3 skin_position(vec3 p, ivec4 j, vec4 w) {
     vec4 s = w.x * (bones[j.x] * h) + w.y * (bones[j.y] * h)
            + w.z * (bones[j.z] * h) + w.w * (bones[j.w] * h);
     return s.xyz;
+}
+
+// A vector at a vertex turned by the blended bone matrices (linear blend skinning is
+// linear: skin_position(p + d) = skin_position(p) + skin_vector(d)).
+vec3 skin_vector(vec3 d, ivec4 j, vec4 w) {
+    return w.x * (mat3(bones[j.x]) * d) + w.y * (mat3(bones[j.y]) * d)
+         + w.z * (mat3(bones[j.z]) * d) + w.w * (mat3(bones[j.w]) * d);
 }
 #endif
