@@ -18,6 +18,13 @@ and noisy: compare the ratios, not the absolute numbers across runs):
   ``LP_NUM_THREADS`` yourself to see more;
 * end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
   and the same without start-up (render phase only);
+* real backgrounds (``--backgrounds``, a config with ``scene.backgrounds``; default
+  ``docs/examples/real_room.yaml``, people in three of the shared captures): the read of
+  each background file in parts (decode, floor RANSAC, free floor), the memory a job
+  holds per background, and its frames interleaved with ``--scene``'s (``living_room``)
+  in one process, per part (describe and placement; GL draw and composite; sensor, two
+  passes over a composited frame; the rest: record), in memory and end to end (shards
+  written). ``--backgrounds-only`` runs only these rows;
 * fixed cost (``--startup`` runs only this): the wall time of a job with zero frames, i.e.
   the intercept ``a`` of ``T(N) = a + b N`` through two runs of the same job (same
   workers) that differ only in their number of frames, N set through ``poses.frame_step``
@@ -58,6 +65,13 @@ def main() -> None:
     ap.add_argument("--scene-job-frames", type=int, default=240,
                     help="frames of each job in the scene comparison's job runs (two "
                          "runs of each config, interleaved); 0 to skip")
+    ap.add_argument("--backgrounds", default=str(REPO / "docs" / "examples" / "real_room.yaml"),
+                    help="a config with scene.backgrounds whose frames are timed beside "
+                         "--scene's, per part; '' to skip")
+    ap.add_argument("--background-frames", type=int, default=48,
+                    help="frames timed per config for the background rows")
+    ap.add_argument("--backgrounds-only", action="store_true",
+                    help="only the background rows")
     ap.add_argument("--startup", action="store_true", help="only the fixed-cost rows")
     ap.add_argument("--steps", type=int, nargs=2, default=(8, 2),
                     help="the two poses.frame_step values of the fixed-cost runs")
@@ -72,6 +86,17 @@ def main() -> None:
         jc = JobConfig.load(args.config, backend=args.backend)
         print_rows(fixed_cost(jc, args.steps), f"vhgen fixed cost: config {jc.name}, "
                    f"backend {jc.backend}, {jc.num_workers} workers, {os.cpu_count()} CPUs")
+        return
+
+    if args.backgrounds_only:
+        from vhgen.assets import resolve_asset_dir
+
+        rows, notes = background_rows(args.backgrounds, args.scene, args.backend,
+                                      args.background_frames, resolve_asset_dir(None))
+        print_rows(rows, f"vhgen real backgrounds: {Path(args.backgrounds).name} beside "
+                   f"{Path(args.scene).name}, {os.cpu_count()} CPUs")
+        for n in notes:
+            print(n)
         return
 
     from vhgen.assets import resolve_asset_dir
@@ -137,6 +162,11 @@ def main() -> None:
         if args.scene_job_frames > 0:
             ratio = (*ratio, _scene_job_rows(cfg, args.scene, args.backend,
                                              args.scene_job_frames, rows))
+    bg_notes: list[str] = []
+    if args.backgrounds:
+        bg_rows, bg_notes = background_rows(args.backgrounds, args.scene, args.backend,
+                                            args.background_frames, asset_dir)
+        rows += bg_rows
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
@@ -185,6 +215,8 @@ def main() -> None:
         if len(ratio) > 5:
             print(f"scene frame / person-only frame, as jobs run them (steady time per "
                   f"frame of a worker, all workers busy): {ratio[5]:.2f}x")
+    for n in bg_notes:
+        print(n)
 
 
 def _cycled(job, n: int):
@@ -270,6 +302,120 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
     rows.append((f"end to end, {full.name} with 1 person (shards)", m, t_e2e[2]))
     return (t_mem[1] / t_mem[0], t_mem[2] / t_mem[0], t_e2e[1] / t_e2e[0],
             t_e2e[2] / t_e2e[0], (t_mem[1] - gl[1]) / (t_mem[0] - gl[0]))
+
+
+def background_rows(bg_path, scene_path, backend, num_frames, asset_dir
+                    ) -> tuple[list[tuple[str, int, float]], list[str]]:
+    """Rows of the real-background config ``bg_path``: each background file read in parts
+    (once per job), then its frames beside ``scene_path``'s, interleaved in one process
+    (after a warm-up shard, frame i of each plan, cycled), per part, in memory and end
+    to end (shards written as a worker writes them). Returns the rows and summary lines
+    (ratios to the scene config's frame, the job's memory per background)."""
+    import vhgen.pipeline.frames as frames_mod
+    from vhgen.depthfile import depth_files, read_depth
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.job import prepare_job
+    from vhgen.render.context import create_context
+    from vhgen.scene.background import estimate_floor, free_floor
+    from vhgen.store.zarr_store import create_store
+
+    bg_cfg = JobConfig.load(bg_path, backend=backend)
+    scene_cfg = JobConfig.load(scene_path, backend=backend)
+    rows: list[tuple[str, int, float]] = []
+    files = depth_files([b.path for b in bg_cfg.scene.backgrounds])
+    t = [0.0, 0.0, 0.0]
+    for f in files:
+        t0 = time.perf_counter()
+        frame = read_depth(f)
+        t1 = time.perf_counter()
+        floor = estimate_floor(frame.depth_mm, bg_cfg.sensor.intrinsics)
+        t2 = time.perf_counter()
+        free_floor(frame.depth_mm, bg_cfg.sensor.intrinsics, floor)
+        t3 = time.perf_counter()
+        t = [t[0] + t1 - t0, t[1] + t2 - t1, t[2] + t3 - t2]
+    n = len(files)
+    rows.append(("background read: decode (per file)", n, t[0]))
+    rows.append(("background read: floor RANSAC (per file)", n, t[1]))
+    rows.append(("background read: free floor (per file)", n, t[2]))
+
+    k = min(c.frames_per_shard for c in (bg_cfg, scene_cfg))
+    shards = max(2, num_frames // k)
+    total = (shards + 1) * k
+    jobs = [prepare_job(c, asset_dir=asset_dir) for c in (scene_cfg, bg_cfg)]
+    bgs = jobs[1].backgrounds
+    assert bgs is not None
+    ctx = create_context(bg_cfg.backend)
+    gens = [FrameGenerator(_cycled(j, total), context=ctx) for j in jobs]
+    parts = [{"describe": 0.0, "render": 0.0, "sensor": 0.0} for _ in gens]
+
+    def timed(fn, j, part):
+        def call(*a, **kw):
+            t0 = time.perf_counter()
+            out = fn(*a, **kw)
+            parts[j][part] += time.perf_counter() - t0
+            return out
+        return call
+
+    for j, g in enumerate(gens):
+        for a in range(len(g.job.plan.avatars)):
+            g.scene._resident([a])
+        for f in range(k):  # warm-up: kernels, the background textures
+            g.render_frame(f)
+        g.describer.describe = timed(g.describer.describe, j, "describe")
+        g.scene.render = timed(g.scene.render, j, "render")
+    gens[0].sensor.simulate = timed(gens[0].sensor.simulate, 0, "sensor")
+    over_real = frames_mod.simulate_over_real
+    frames_mod.simulate_over_real = timed(over_real, 1, "sensor")  # type: ignore[assignment]
+    t_mem = [0.0, 0.0]
+    people = 0
+    try:
+        for f in range(k, total):
+            for j, g in enumerate(gens):
+                t0 = time.perf_counter()
+                out = g.render_frame(f)
+                t_mem[j] += time.perf_counter() - t0
+                people += out.record.num_people if j == 1 else 0
+        mem_parts = [dict(p) for p in parts]
+        t_e2e = [0.0, 0.0]
+        with tempfile.TemporaryDirectory() as tmp:
+            stores = []
+            for j, g in enumerate(gens):
+                c = g.cfg
+                stores.append(str(Path(tmp) / f"b{j}.zarr"))
+                create_store(stores[-1], num_frames=total, height=c.sensor.intrinsics.height,
+                             width=c.sensor.intrinsics.width, frames_per_shard=k,
+                             compression_level=c.compression_level, attrs={},
+                             raw11=c.sensor.encoding.raw11)
+            for sh in range(shards + 1):
+                for j, g in enumerate(gens):
+                    t0 = time.perf_counter()
+                    g.run_task(stores[j], sh, sh * k, sh * k + k)
+                    if sh > 0:
+                        t_e2e[j] += time.perf_counter() - t0
+    finally:
+        frames_mod.simulate_over_real = over_real  # type: ignore[assignment]
+        for g in gens:
+            g.close()
+        ctx.release()
+    m = total - k
+    names = [scene_cfg.name, f"{bg_cfg.name} ({people / m:.2f} people)"]
+    for j, name in enumerate(names):
+        rest = t_mem[j] - sum(mem_parts[j].values())
+        rows.append((f"frame, {name} (interleaved)", m, t_mem[j]))
+        rows.append(("  describe + placement", m, mem_parts[j]["describe"]))
+        rows.append(("  GL draw" + (" + composite" if j else ""), m, mem_parts[j]["render"]))
+        rows.append(("  sensor" + (" (2 passes + composition)" if j else ""), m,
+                     mem_parts[j]["sensor"]))
+        rows.append(("  record, rest", m, rest))
+        rows.append((f"end to end, {name} (shards)", m, t_e2e[j]))
+    per_bg = (bgs.depth_mm.nbytes + bgs.clearance.nbytes) / len(bgs) / 1e6
+    notes = [f"{bg_cfg.name} frame / {scene_cfg.name} frame: {t_mem[1] / t_mem[0]:.2f}x in "
+             f"memory, {t_e2e[1] / t_e2e[0]:.2f}x end to end; sensor "
+             f"{mem_parts[1]['sensor'] / mem_parts[0]['sensor']:.2f}x",
+             f"a job holds {per_bg:.2f} MB per background (depth uint16 + free-floor grid "
+             "uint8), one array each: mapped by local workers, shared by Ray's object store"]
+    return rows, notes
 
 
 def _scene_job_rows(cfg, scene_path, backend, num_frames, rows) -> float:

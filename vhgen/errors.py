@@ -60,3 +60,13 @@ class DepthFileError(VhgenError):
         self.path = str(path)
         self.message = message
         super().__init__(f"{self.path}: {message}")
+
+
+class BackgroundError(VhgenError):
+    """A real depth frame that cannot serve as a background (wrong size or intrinsics, no
+    floor, no free floor); names the file."""
+
+    def __init__(self, path: str | Path, message: str):
+        self.path = str(path)
+        self.message = message
+        super().__init__(f"{self.path}: {message}")

@@ -24,6 +24,7 @@ from vhgen.scene.scene_config import (
     BEHIND_M,
     CAMERA_CLEARANCE_M,
     PERSON_CLEARANCE_M,
+    BackgroundSource,
     PropsConfig,
     RoomConfig,
     SceneConfig,
@@ -234,7 +235,10 @@ class JobConfig:
             sensor = SensorConfig.load(refs["sensor"])
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
-        _check_camera_sees(camera, sensor.intrinsics, path)
+        if scene.backgrounds:
+            _check_background_sensor(scene, sensor, path)
+        else:
+            _check_camera_sees(camera, sensor.intrinsics, path)
         assets = d.get("assets")
         if assets is not None:
             assets = str((path.parent / Path(assets).expanduser()).resolve())
@@ -376,14 +380,83 @@ def _props(d: Any, src) -> PropsConfig:
     return props
 
 
+def _backgrounds(v: Any, src) -> tuple[BackgroundSource, ...]:
+    """``scene.backgrounds``: files or folders of real depth frames, each a path or
+    ``{path, intrinsics: {fx, fy, cx, cy}, class}``. Paths are relative to the config file
+    and must exist (the frames themselves are read by ``prepare_job``)."""
+    if isinstance(v, (str, dict)):
+        v = [v]
+    if not isinstance(v, list) or not v:
+        raise ConfigError(src, "scene.backgrounds", "must be a file or folder of real depth "
+                          f"frames (PCD, 16-bit PNG), or a list of them, got {v!r}")
+    out = []
+    for i, e in enumerate(v):
+        field = f"scene.backgrounds[{i}]"
+        if isinstance(e, str):
+            e = {"path": e}
+        if not isinstance(e, dict):
+            raise ConfigError(src, field, f"must be a path or {{path, intrinsics, class}}, "
+                              f"got {e!r}")
+        check_keys(e, {"path", "intrinsics", "class"}, {"path"}, src, field + ".")
+        if not isinstance(e["path"], str) or not e["path"]:
+            raise ConfigError(src, field + ".path", f"must be a path, got {e['path']!r}")
+        p = Path(e["path"]).expanduser()
+        if not p.is_absolute() and src is not None:
+            p = Path(src).parent / p
+        if not p.exists():
+            raise ConfigError(src, field + ".path", f"no such file or folder: {p}")
+        intr = None
+        if "intrinsics" in e:
+            k = e["intrinsics"]
+            check_keys(k, {"fx", "fy", "cx", "cy"}, {"fx", "fy", "cx", "cy"}, src,
+                       field + ".intrinsics.")
+            intr = (_num(k, "fx", src, field + ".intrinsics.", lo=1.0),
+                    _num(k, "fy", src, field + ".intrinsics.", lo=1.0),
+                    _num(k, "cx", src, field + ".intrinsics."),
+                    _num(k, "cy", src, field + ".intrinsics."))
+        cls = _prop_class({"class": e.get("class", "real")}, src, field + ".class")
+        out.append(BackgroundSource(str(p.resolve()), intr, cls))
+    return tuple(out)
+
+
+def _check_background_sensor(scene: SceneConfig, sensor: SensorConfig, src) -> None:
+    """Load-time: a sensor that can run over real backgrounds, and intrinsics given for
+    PNG backgrounds that are the sensor's (see ``vhgen.scene.background``)."""
+    from vhgen.scene.background import intrinsics_mismatch
+
+    if "projector_depth" in sensor.needs:
+        raise ConfigError(src, "scene.backgrounds", f"sensor {sensor.name} needs a "
+                          "projector-view depth image (projector_shadow: {method: exact} "
+                          "or structured_light), which a real depth frame does not have: "
+                          "use projector_shadow: {method: screen_space}")
+    for i, b in enumerate(scene.backgrounds):
+        if b.intrinsics is not None:
+            bad = intrinsics_mismatch(b.intrinsics, sensor.intrinsics)
+            if bad:
+                raise ConfigError(src, f"scene.backgrounds[{i}].intrinsics", bad)
+
+
 def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
     """The ``scene:`` section; checks at load time that a room can hold the people, the
     props and the camera at its farthest distance."""
-    check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction"}, set(), src,
-               "scene.")
+    check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction",
+                   "backgrounds"}, set(), src, "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
+    backgrounds: tuple[BackgroundSource, ...] = ()
+    if d.get("backgrounds") is not None:
+        backgrounds = _backgrounds(d["backgrounds"], src)
+        # the real frame is the room: its floor holds the people, nothing synthetic is
+        # drawn around them
+        for key in ("room", "props"):
+            if d.get(key) not in (None, False):
+                raise ConfigError(src, "scene.backgrounds", f"a real background is the "
+                                  f"room: it cannot be combined with scene.{key}")
+        if d.get("floor") is False:
+            raise ConfigError(src, "scene.floor", "people stand on the floor of the real "
+                              "backgrounds (scene.backgrounds): it cannot be false")
+        floor = True
     people = _int_range(d, "people", src, "scene.", (1, 1), 1, 32)
     props = None
     if d.get("props") not in (None, False):
@@ -421,6 +494,11 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
                               f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
                               f"about {2 * need_area:.1f} m^2")
-    return SceneConfig(floor=floor, room=room, people=people, props=props,
-                       min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
-                                                 lo=0.0, hi=1.0, default=0.5))
+    scene = SceneConfig(floor=floor, room=room, people=people, props=props,
+                        min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
+                                                  lo=0.0, hi=1.0, default=0.5),
+                        backgrounds=backgrounds)
+    if len(scene.class_names) > MAX_SCENE_CLASSES:
+        raise ConfigError(src, "scene.backgrounds", f"{len(scene.class_names)} scene "
+                          f"classes; the uint8 classes array holds {MAX_SCENE_CLASSES}")
+    return scene

@@ -11,6 +11,7 @@ from vhgen.body.kernels import skin_points
 from vhgen.body.skinning import matrices_from_heads, posed_heads
 from vhgen.camera import sample_camera
 from vhgen.pipeline.job import Job
+from vhgen.scene.background import layout_background
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.layout import layout_scene
 from vhgen.scene.placement import Disc
@@ -104,6 +105,8 @@ class FrameDescriber:
         sc = job.cfg.scene
         person = self.person(1, int(plan.avatar_id[frame]), int(plan.pose_index[frame]),
                              ground=sc.floor, footprint=not sc.is_person_only)
+        if job.backgrounds is not None:
+            return self._on_background(frame, seed, rng, person)
         cam = sample_camera(rng, job.cfg.camera)
         noise_state = rng.bit_generator.state
         if sc.is_person_only:
@@ -113,3 +116,20 @@ class FrameDescriber:
         lay = layout_scene(srng, sc, cam, job.cfg.sensor.intrinsics, reach, person, self)
         return FrameDescription(frame, seed, cam, lay.people, lay.static, lay.room,
                                 noise_state, lay.props, lay.dropped)
+
+    def _on_background(self, frame: int, seed: int, rng: np.random.Generator,
+                       person: Person) -> FrameDescription:
+        """A frame composited into one of the job's real backgrounds: the camera is the
+        background's (none is drawn; the sensor noise starts from the frame stream as
+        it is), the background and the people's places come from the scene stream
+        (:func:`vhgen.scene.background.layout_background`), the people stand
+        ``camera.distance_m`` from the camera."""
+        job = self.job
+        assert job.backgrounds is not None
+        srng = np.random.default_rng(np.random.SeedSequence([seed, _SCENE_STREAM]))
+        bg = layout_background(srng, job.cfg.scene, job.backgrounds,
+                               job.cfg.sensor.intrinsics, job.cfg.camera.distance_m, person,
+                               self)
+        return FrameDescription(frame, seed, bg.camera, bg.people, (), None,
+                                rng.bit_generator.state, (), bg.dropped, bg.background,
+                                bg.planned)

@@ -26,6 +26,7 @@ from vhgen.pipeline.job import Job
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import unpack_ids
 from vhgen.scene.truth import joint_visibility
+from vhgen.sensor.composite import simulate_over_real
 from vhgen.sensor.simulator import SensorModel
 from vhgen.store.manifest import write_part
 from vhgen.store.record import FrameRecord, PersonRecord
@@ -88,8 +89,9 @@ class FrameGenerator:
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
-                                           incidence="incidence" in cfg.sensor.needs)
-        self.scene = SceneRenderer(self.renderer, self.describer.body)
+                                           incidence="incidence" in cfg.sensor.needs,
+                                           background=bool(cfg.scene.backgrounds))
+        self.scene = SceneRenderer(self.renderer, self.describer.body, cfg.scene.class_id)
         self._sensor_json = json.dumps(cfg.sensor.to_dict(), sort_keys=True)
 
     def describe(self, frame: int) -> FrameDescription:
@@ -102,9 +104,16 @@ class FrameGenerator:
                                   else None)
         cam = views.camera
         packed = cam.ids  # the sensor moves this one array with the pixels
-        out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
-                                   incidence=cam.incidence,
-                                   projector_depth=views.projector_depth)
+        if desc.background is None:
+            out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
+                                       incidence=cam.incidence,
+                                       projector_depth=views.projector_depth)
+        else:  # real pixels keep their measurement where the people change nothing
+            bg = desc.background
+            out = simulate_over_real(self.sensor, cam.depth, desc.noise_rng(),
+                                     real_mm=bg.depth_mm, labels=packed,
+                                     real_label=self.cfg.scene.class_id(bg.class_name) << 16,
+                                     incidence=cam.incidence)
         labels, instances, classes = unpack_ids(out.labels if out.labels is not None
                                                 else packed)
         return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
@@ -149,6 +158,11 @@ class FrameGenerator:
         scene = None if sc.is_person_only else {
             "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None,
             "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
+        if scene is not None and desc.background is not None:
+            scene["background"] = desc.background.to_dict()
+            if desc.planned is not None:  # another person took the plan's place
+                scene["planned"] = {"avatar_id": desc.planned[0],
+                                    "pose_index": desc.planned[1]}
         return FrameRecord(
             frame=desc.frame, shard=-1,
             motion_file=motion_file, motion_sha1=motion_sha1, source_frame=source_frame,

@@ -7,6 +7,7 @@ to :class:`~vhgen.pipeline.frames.FrameGenerator` (directly, or through a worker
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -17,6 +18,9 @@ from vhgen.job_config import JobConfig
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import Plan, make_plan
 from vhgen.pipeline.poses import PoseSet, load_poses
+from vhgen.scene.background import Backgrounds, load_backgrounds
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,6 +33,8 @@ class Job:
     base : the unshaped base body (its rig is the one the poses were retargeted onto).
     poses : every pose, retargeted, with its motion file and source frame.
     plan : every frame's avatar, pose and seed, and the shards.
+    backgrounds : the real backgrounds (``scene.backgrounds``: read, floors found, free
+        floor mapped), or None.
     """
 
     cfg: JobConfig
@@ -37,6 +43,7 @@ class Job:
     base: Body
     poses: PoseSet
     plan: Plan
+    backgrounds: Backgrounds | None = None
 
     @property
     def rig_bones(self) -> list[str]:
@@ -50,13 +57,19 @@ class Job:
 
 def prepare_job(cfg: JobConfig, *, max_frames: int | None = None,
                 asset_dir: str | Path | None = None) -> Job:
-    """Read, retarget and select the poses, build the base body and plan the frames.
+    """Read the real backgrounds (``scene.backgrounds``: floor and free floor of each,
+    see :func:`vhgen.scene.background.load_backgrounds`; a bad file is one warning line),
+    read, retarget and select the poses, build the base body and plan the frames.
 
     max_frames : only the plan's first N frames (the same frames, seeds and shards as the
         full job). asset_dir : the MakeHuman assets (default: the config's, else the
         fetched ones).
     """
     assets = Path(resolve_asset_dir(cfg.assets) if asset_dir is None else asset_dir)
+    backgrounds = None
+    if cfg.scene.backgrounds:  # read first (no usable one fails the job at once)
+        backgrounds = load_backgrounds(cfg.scene.backgrounds, cfg.sensor.intrinsics,
+                                       cfg.camera.distance_m, log.warning, cfg.source)
     scheme = LabelScheme.load(cfg.labels)
     rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
     base = build_body(assets, scheme)
@@ -64,7 +77,7 @@ def prepare_job(cfg: JobConfig, *, max_frames: int | None = None,
     plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
     if max_frames is not None and max_frames < plan.num_frames:
         plan = _truncate(plan, max_frames)
-    return Job(cfg, assets, scheme, base, poses, plan)
+    return Job(cfg, assets, scheme, base, poses, plan, backgrounds)
 
 
 def _truncate(plan: Plan, n: int) -> Plan:

@@ -175,10 +175,14 @@ class DepthLabelRenderer:
     """
 
     def __init__(self, ctx, intr: Intrinsics, near: float = 0.1, far: float = 20.0,
-                 skinning: str = "lbs", incidence: bool = False):
+                 skinning: str = "lbs", incidence: bool = False, background: bool = False):
         _defines(1, skinning)
         self.skinning = skinning
         self.want_incidence = bool(incidence)
+        # a real depth frame as the depth test's far limit (see set_background); compiled
+        # in only when asked for, so other jobs run the very same shader as before
+        self.want_background = bool(background)
+        self.background_tex: Any = None
         self.incidence: np.ndarray | None = None  # (H, W) float32 after render()
         self.ctx = ctx
         self.intr = intr
@@ -208,9 +212,13 @@ class DepthLabelRenderer:
         if garments:
             defs["GARMENTS"] = 1
             defs["CLOTH_MARGIN"] = f"{CLOTH_MARGIN_M!r}"
+        if self.want_background:
+            defs["BACKGROUND_DEPTH"] = 1
         program = self.ctx.program(vertex_shader=_shader("skin.vert", defs),
                                    fragment_shader=_shader("skin.frag", defs))
         program["face_labels"].value = 0
+        if self.want_background:
+            program["background_depth"].value = 1
         program["projection"].write(self.projection.T.astype("f4").tobytes())
         return program
 
@@ -405,6 +413,25 @@ class DepthLabelRenderer:
             self._single = None
         self._single = self.upload(vertices, faces, joints, weights, face_labels, num_bones)
 
+    def set_background(self, depth_m: np.ndarray) -> None:
+        """The real depth (H, W) float32 planar metres (0 = no measurement) the following
+        draws are tested against: a fragment at or behind it is discarded (see
+        ``skin.frag``). Needs a renderer made with ``background=True``."""
+        import moderngl
+
+        if not self.want_background:
+            raise RenderError("set_background() on a renderer made without background=True")
+        z = np.ascontiguousarray(depth_m, dtype="f4")
+        if z.shape != (self.intr.height, self.intr.width):
+            raise RenderError(f"background depth {z.shape} is not the image "
+                              f"{self.intr.height}x{self.intr.width}")
+        if self.background_tex is None:
+            self.background_tex = self.ctx.texture((self.intr.width, self.intr.height), 1,
+                                                   dtype="f4")
+            self.background_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.background_tex.write(z.tobytes())
+        self._check("uploading the background depth")
+
     def _check(self, what: str) -> None:
         err = self.ctx.error
         if err != "GL_NO_ERROR":
@@ -416,6 +443,10 @@ class DepthLabelRenderer:
 
         if self.program is None:
             raise RenderError("draw() before any mesh was uploaded")
+        if self.want_background:
+            if self.background_tex is None:
+                raise RenderError("draw() before set_background()")
+            self.background_tex.use(1)
         self.fbo.use()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx = self.ctx
@@ -490,7 +521,7 @@ class DepthLabelRenderer:
             self._static[0].release()
             self._static = None
         for obj in (self.program, self.garment_program, self.fbo, self.color, self.ids_tex,
-                    self.depth):
+                    self.depth, self.background_tex):
             if obj is not None:
                 obj.release()
         self.program = None

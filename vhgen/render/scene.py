@@ -15,9 +15,11 @@ import numpy as np
 from vhgen.body.avatar import Body
 from vhgen.body.contact import body_contacts
 from vhgen.camera import world_to_projector
+from vhgen.errors import RenderError
 from vhgen.render.renderer import DepthLabelRenderer, Draw, GpuMesh, View
 from vhgen.scene.description import FrameDescription
-from vhgen.scene.geometry import PERSON, StaticMesh
+from vhgen.scene.geometry import PERSON, StaticMesh, pack_ids
+from vhgen.sensor.composite import real_depth_m
 
 MAX_RESIDENT_AVATARS = 16  # ~1.1 MB of GPU buffers each
 
@@ -59,14 +61,33 @@ def upload_body(renderer: DepthLabelRenderer, body: Body) -> GpuMesh:
                                                   body.joints))
 
 
+def composite(view: View, real_depth: np.ndarray, real_ids: int) -> View:
+    """The people's ``view`` (drawn against the real depth, see
+    :meth:`DepthLabelRenderer.set_background`) over the real frame: where a person was
+    kept its depth, ids and incidence, elsewhere the real depth (float32 m, 0 = none) with
+    the packed ids ``real_ids`` (holes too: a hole keeps the class of the surface behind
+    it) and incidence 1."""
+    hit = view.ids != 0  # a person's ids are never 0 (its class is person)
+    incidence = None
+    if view.incidence is not None:
+        incidence = np.where(hit, view.incidence, np.float32(1.0))
+    return View(np.where(hit, view.depth, real_depth), np.where(hit, view.ids,
+                                                                 np.uint32(real_ids)),
+                incidence)
+
+
 class SceneRenderer:
     """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
-    last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU)."""
+    last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU) and the
+    last real background (``class_id`` gives the scene class id of its pixels)."""
 
-    def __init__(self, renderer: DepthLabelRenderer, body_of: Callable[[int], Body]):
+    def __init__(self, renderer: DepthLabelRenderer, body_of: Callable[[int], Body],
+                 class_id: Callable[[str], int] | None = None):
         self.renderer = renderer
         self.body_of = body_of
+        self.class_id = class_id
         self._meshes: dict[int, GpuMesh] = {}
+        self._background: tuple[int, np.ndarray] | None = None  # (index, float32 depth)
 
     def _resident(self, avatar_ids: list[int]) -> list[GpuMesh]:
         """The GPU meshes of ``avatar_ids`` (uploaded if needed), least recently used ones
@@ -100,11 +121,32 @@ class SceneRenderer:
                     + [Draw(m, w2v) for m in static])
 
         w2c = desc.camera.world_to_camera
+        if desc.background is not None:
+            return SceneViews(self._over_background(desc, draws(w2c),
+                                                    projector_baseline_m), None)
         cam = self.renderer.draw(draws(w2c))
         proj = None
         if projector_baseline_m is not None:
             proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
         return SceneViews(cam, proj)
+
+    def _over_background(self, desc: FrameDescription, draws: list[Draw],
+                         projector_baseline_m: float | None) -> View:
+        """The people drawn against the frame's real background, composited over it."""
+        bg = desc.background
+        assert bg is not None
+        if projector_baseline_m is not None:
+            raise RenderError("a real background has no projector view (the sensor's "
+                              "projector_shadow must be screen_space)")
+        if self._background is None or self._background[0] != bg.index:
+            self._background = (bg.index, real_depth_m(bg.depth_mm))
+            self.renderer.set_background(self._background[1])
+        if self.class_id is None:
+            raise RenderError("a real background needs the scene's class ids (class_id)")
+        cls = self.class_id(bg.class_name)
+        real_ids = int(pack_ids(np.zeros(1, np.uint8), np.zeros(1, np.uint8),
+                                np.full(1, cls, np.uint8))[0])  # label 0, instance 0
+        return composite(self.renderer.draw(draws), self._background[1], real_ids)
 
     def release(self) -> None:
         for m in self._meshes.values():

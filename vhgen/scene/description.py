@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.camera import CameraPose
+from vhgen.scene.background_frame import PlacedBackground
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import Disc
 from vhgen.scene.room import Room
@@ -75,6 +76,10 @@ class FrameDescription:
     noise_state: Mapping[str, Any]
     props: tuple[PlacedProp, ...] = ()
     dropped: Mapping[str, int] = field(default_factory=dict)  # people/props that did not fit
+    # a real depth frame the people are composited into (vhgen.scene.background), and the
+    # plan's (avatar, pose) when another person took its place there
+    background: PlacedBackground | None = None
+    planned: tuple[int, int] | None = None
 
     def noise_rng(self) -> np.random.Generator:
         """A fresh generator at :attr:`noise_state` (the same numbers every call)."""

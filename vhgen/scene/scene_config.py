@@ -64,6 +64,17 @@ class PropsConfig:
 
 
 @dataclass(frozen=True)
+class BackgroundSource:
+    """One entry of ``scene.backgrounds``: a file or folder of real depth frames (PCD, or
+    16-bit PNG in millimetres), the intrinsics its PNG frames were taken with (fx, fy,
+    cx, cy; None = the sensor's), and the scene class of its pixels."""
+
+    path: str
+    intrinsics: tuple[float, float, float, float] | None = None
+    class_name: str = "real"
+
+
+@dataclass(frozen=True)
 class SceneConfig:
     """What is around the people: a floor (y = 0), optionally a room's walls and props,
     and how many people (uniform integer in ``people``; default exactly 1)."""
@@ -75,12 +86,18 @@ class SceneConfig:
     # each person keeps at least this fraction of its width in view past nearer people
     # and tall props (a floor-plan test at placement time; see placement.visible_fraction)
     min_visible_fraction: float = 0.5
+    # real depth frames people are composited into (vhgen.scene.background); with them the
+    # floor is the background's and there is no room or props
+    backgrounds: tuple[BackgroundSource, ...] = ()
 
     @property
     def class_names(self) -> tuple[str, ...]:
         """The names of the ``classes`` array's ids: the built-in five (background, floor,
-        wall, prop, person; ids 0-4, fixed) then the props' user classes."""
-        return SCENE_CLASSES + (self.props.user_classes if self.props is not None else ())
+        wall, prop, person; ids 0-4, fixed), the props' user classes, then the classes of
+        real background pixels."""
+        user = self.props.user_classes if self.props is not None else ()
+        real = tuple(b.class_name for b in self.backgrounds)
+        return SCENE_CLASSES + tuple(dict.fromkeys(user + real))
 
     def class_id(self, name: str) -> int:
         """The ``classes`` id of a class name of this scene (``prop`` = 3)."""
@@ -88,7 +105,8 @@ class SceneConfig:
 
     @property
     def has_geometry(self) -> bool:
-        return self.floor or self.room is not None or self.props is not None
+        return (self.floor or self.room is not None or self.props is not None
+                or bool(self.backgrounds))
 
     @property
     def is_person_only(self) -> bool:

@@ -34,6 +34,7 @@ class SensorOutput:
     raw11: np.ndarray | None  # uint16, 2047 = invalid, when the encoding keeps raw11
     disparity: np.ndarray  # float64 px, 0 where invalid
     holes: dict[str, int]  # cause -> pixel count
+    hole_masks: dict[str, np.ndarray] | None = None  # cause -> (H, W) bool, the pixels
 
 
 class SensorModel:
@@ -87,4 +88,4 @@ class SensorModel:
         enc = cfg.encoding
         raw = encode_raw11(d, ok, enc.d_off) if enc.raw11 else None
         holes = {c: int(np.count_nonzero(m)) for c, m in s.holes.items()}
-        return SensorOutput(depth_mm, ok, s.labels, raw, d, holes)
+        return SensorOutput(depth_mm, ok, s.labels, raw, d, holes, s.holes)

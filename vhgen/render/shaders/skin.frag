@@ -16,6 +16,14 @@ uniform int labels_are_classes;
 uniform uint instance_id;
 uniform uint draw_class;
 uniform int prim_offset;  // first triangle of this draw call in the label texture
+#ifdef BACKGROUND_DEPTH
+// A real depth frame the people are composited into (R32F planar metres, 0 = no
+// measurement; texel (u, v) is image pixel (u, v)): a fragment at or behind the real
+// surface of its pixel is discarded, so a nearer real surface hides a person exactly. The
+// test compares the same float32 planar depth this shader writes to target 0, not a
+// window-space depth buffer value (24-bit, non-linear in z).
+uniform sampler2D background_depth;
+#endif
 
 in float v_depth;
 in vec3 v_cam;
@@ -23,6 +31,10 @@ layout(location = 0) out vec4 out_depth_incidence;
 layout(location = 1) out float out_ids;
 
 void main() {
+#ifdef BACKGROUND_DEPTH
+    float real = texelFetch(background_depth, ivec2(gl_FragCoord.xy), 0).r;
+    if (real > 0.0 && v_depth >= real) discard;
+#endif
     int id = gl_PrimitiveID + prim_offset;
     uvec2 t = texelFetch(face_labels, ivec2(id % LABEL_TEX_WIDTH, id / LABEL_TEX_WIDTH), 0).rg;
     uint ids;

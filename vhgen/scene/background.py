@@ -1,0 +1,579 @@
+"""Real depth frames as backgrounds (pure): their floor, their free floor, and people
+placed on it.
+
+A background is a real depth frame (read by :mod:`vhgen.depthfile`) of a room, taken by
+the camera the job's sensor model describes. Once per job (:func:`load_backgrounds`,
+called by ``prepare_job``) every frame is read, its floor plane estimated
+(:func:`estimate_floor`: RANSAC on the back-projected points, float64) and its free floor
+mapped (:func:`free_floor`); a frame without a floor or without free floor is reported in
+one line and left out. Per frame (:func:`layout_background`, from the frame's scene
+stream) a background is drawn and the people are placed on its free floor.
+
+World frame of a background (:meth:`FloorPlane.world_to_camera`): y up and y = 0 the real
+floor; the camera at (0, h, 0), h its height above the floor, with its optical axis
+projected onto the floor along +z. The camera's pitch and roll are the floor's tilt.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vhgen.camera import CameraPose, Intrinsics, pitch_roll_deg, project
+from vhgen.errors import BackgroundError, ConfigError, DepthFileError
+from vhgen.scene.background_frame import FloorPlane, PlacedBackground
+from vhgen.scene.description import Person
+from vhgen.scene.placement import GAP_M, PLACEMENT_TRIES, Disc, visible_fraction, yaw_transform
+from vhgen.scene.scene_config import BackgroundSource, SceneConfig
+from vhgen.scene.truth import VISIBILITY_TOLERANCE_M
+
+if TYPE_CHECKING:
+    from vhgen.scene.layout import People
+
+# -- the floor --------------------------------------------------------------------------
+FLOOR_STEP_PX = 4  # the plane is fitted on every 4th pixel of every 4th row (~15k points)
+HYPOTHESES = 1000  # RANSAC: planes through 3 points, drawn with a fixed seed
+REFINED = 8  # the best distinct hypotheses refined (Tukey IRLS), compared by their cost
+SCORE_POINTS = 4000  # hypotheses are ranked on this many of the points
+# residual scale of a floor point, sigma(z) = SIGMA_M + SIGMA_Z2 z^2 (metres): the depth
+# noise grows with z^2 (1.44 mm/m^2 axial noise and 2.9 mm/m^2 quantisation steps on the
+# shared OpenNI frames, README "Real frames and realism"); on capture0001-0003 the floor
+# points' residuals have a standard deviation of 0.8 sigma
+SIGMA_M = 0.006
+SIGMA_Z2 = 0.0015
+CUT = 3.0  # a point within CUT sigma of the plane is on it
+# ... and its surface faces along the plane's normal, within FACING_DEG (the normal from
+# the points NORMAL_SPAN samples to each side): a slanted plane through the floor and the
+# front of a table holds points of both, but the table's front faces the camera
+FACING_DEG = 30.0
+NORMAL_SPAN = 2
+# nothing stands under a floor: a point more than CUT sigma below a candidate costs
+# BELOW_PENALTY outliers, and a plane with more than MAX_BELOW of the points under it is
+# not the floor (a table top, a stair tread with the floor in view below it)
+BELOW_PENALTY = 3.0
+MAX_BELOW = 0.002
+MIN_FLOOR_FRACTION = 0.03  # of the measured points: less is not a floor to stand on
+MAX_TILT_DEG = 45.0  # the floor's normal within this of the image's up direction
+CAMERA_HEIGHT_M = (0.2, 3.0)
+
+# -- the free floor ---------------------------------------------------------------------
+CELL_M = 0.05  # floor grid cell
+OBSTACLE_TOP_M = 2.2  # points up to this height over the floor are in a person's way
+MIN_OBSTACLE_POINTS = 3  # per cell: fewer are taken for noise of the floor
+GRID_HALF_WIDTH_M = 8.0
+GRID_DEPTH_M = 12.0
+# a background whose free floor holds no disc this wide is left out: a person standing
+# with the arms down needs about 0.4 m, and 9 cm more for the gap and the spot's jitter
+MIN_FREE_RADIUS_M = 0.5
+
+# -- per frame --------------------------------------------------------------------------
+BACKGROUND_DRAWS = 8  # backgrounds tried for the plan's person before another is drawn
+SUBSTITUTES = 8  # people drawn in its place when it fits no background drawn
+
+
+def _points(depth_mm: np.ndarray, intr: Intrinsics, step: int = 1) -> np.ndarray:
+    """(N, 3) float64 camera-frame points of the measured pixels of every ``step``-th row
+    and column."""
+    d = np.asarray(depth_mm)[::step, ::step]
+    v, u = np.nonzero(d)
+    z = d[v, u].astype(np.float64) / 1000.0
+    return np.stack([(u * step - intr.cx) * z / intr.fx, (v * step - intr.cy) * z / intr.fy,
+                     z], -1)
+
+
+def _sigma(points: np.ndarray) -> np.ndarray:
+    return SIGMA_M + SIGMA_Z2 * points[:, 2] ** 2
+
+
+def _normals(depth_mm: np.ndarray, intr: Intrinsics, step: int) -> tuple[np.ndarray,
+                                                                          np.ndarray]:
+    """The points of every ``step``-th pixel (N, 3) float64 camera frame and their local
+    surface normals (N, 3), from the points NORMAL_SPAN samples away on each side (NaN
+    where a neighbour has no measurement)."""
+    d = np.asarray(depth_mm)[::step, ::step].astype(np.float64) / 1000.0
+    v, u = np.indices(d.shape) * step
+    grid = np.stack([(u - intr.cx) * d / intr.fx, (v - intr.cy) * d / intr.fy, d], -1)
+    grid[d == 0] = np.nan
+    k = NORMAL_SPAN
+    normals = np.full(grid.shape, np.nan)
+    normals[k:-k, k:-k] = np.cross(grid[k:-k, 2 * k:] - grid[k:-k, :-2 * k],
+                                   grid[2 * k:, k:-k] - grid[:-2 * k, k:-k])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    ok = d > 0
+    return grid[ok], normals[ok]
+
+
+def _cost(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.ndarray,
+          h: np.ndarray) -> np.ndarray:
+    """MSAC cost of planes (K, 3), (K,): truncated squared residuals in sigma of the
+    points that face along a plane's normal (others are outliers of it), a point under a
+    plane counting BELOW_PENALTY outliers. facing: (N, 3) local normals. (K,)"""
+    r = (points @ n.T + h) / sigma[:, None]
+    inlier = np.abs(facing @ n.T) >= math.cos(math.radians(FACING_DEG))
+    return (np.where(inlier, np.minimum(r * r, CUT * CUT), CUT * CUT)
+            + np.where(r < -CUT, CUT * CUT * BELOW_PENALTY, 0.0)).sum(0)
+
+
+def _refine(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.ndarray,
+            h: float) -> tuple[np.ndarray, float]:
+    """Tukey-weighted least squares of the plane on the points facing along it (iterated
+    to convergence from a hypothesis); the normal turned to point up (-y in the camera
+    frame)."""
+    cos_facing = math.cos(math.radians(FACING_DEG))
+    # only points near the hypothesis can ever weigh (the plane moves little)
+    near = np.abs(points @ n + h) < 3 * CUT * sigma
+    points, sigma, facing = points[near], sigma[near], facing[near]
+    for _ in range(30):
+        u = (points @ n + h) / sigma / CUT
+        w = np.where((np.abs(u) < 1) & (np.abs(facing @ n) >= cos_facing),
+                     (1 - u * u) ** 2, 0.0) / sigma ** 2
+        if w.sum() <= 0:
+            break
+        c = (points * w[:, None]).sum(0) / w.sum()
+        m = ((points - c) * w[:, None]).T @ (points - c)
+        n2 = np.linalg.eigh(m)[1][:, 0]
+        n2 = -n2 if n2[1] > 0 else n2
+        h2 = float(-n2 @ c)
+        done = np.abs(n2 - n).max() < 1e-8 and abs(h2 - h) < 1e-8
+        n, h = n2, h2
+        if done:
+            break
+    return n, h
+
+
+def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
+                   path: str = "<frame>") -> FloorPlane:
+    """The floor plane of a real depth frame (H, W) uint16 mm (0 = no measurement).
+
+    RANSAC in float64 on the points of every FLOOR_STEP_PX-th pixel: HYPOTHESES planes
+    through three points (a fixed seed: the same file gives the same floor), kept when
+    their normal is within MAX_TILT_DEG of the image's up direction with the camera
+    CAMERA_HEIGHT_M above them; the REFINED cheapest distinct ones (MSAC cost on
+    SCORE_POINTS of the points, points under the plane penalised, points whose surface
+    does not face along the plane outliers) are refined by Tukey-weighted least squares
+    on all the points, and the cheapest refined plane
+    with at most MAX_BELOW of the points under it wins. BackgroundError naming ``path``
+    when no plane qualifies or the best holds less than MIN_FLOOR_FRACTION of the points.
+    """
+    p, facing = _normals(depth_mm, intr, FLOOR_STEP_PX)
+    if len(p) < 100:
+        raise BackgroundError(path, f"no floor: only {len(p)} measured points")
+    facing = np.nan_to_num(facing)  # no normal (an edge): faces nothing
+    sigma = _sigma(p)
+    rng = np.random.default_rng(0)
+    # hypotheses through points facing up-ish (within MAX_TILT_DEG + FACING_DEG)
+    up = np.flatnonzero(np.abs(facing[:, 1]) >= math.cos(math.radians(
+        min(89.0, MAX_TILT_DEG + FACING_DEG))))
+    if len(up) < 3:
+        raise BackgroundError(path, "no floor: no surface under the camera faces up")
+    idx = up[rng.integers(len(up), size=(HYPOTHESES, 3))]
+    a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-12
+    n = n / np.where(ok, norm, 1.0)[:, None]
+    h = -(n * a).sum(1)
+    n *= np.where(h < 0, -1.0, 1.0)[:, None]  # the camera on the positive side
+    h = np.abs(h)
+    ok &= ((-n[:, 1] >= math.cos(math.radians(MAX_TILT_DEG)))
+           & (h >= CAMERA_HEIGHT_M[0]) & (h <= CAMERA_HEIGHT_M[1]))
+    keep = np.flatnonzero(ok)
+    if not len(keep):
+        raise BackgroundError(path, f"no floor: no plane within {MAX_TILT_DEG:g} deg of "
+                              f"level {CAMERA_HEIGHT_M[0]}-{CAMERA_HEIGHT_M[1]} m under "
+                              "the camera")
+    # hypotheses are ranked on a sample of the points (a fixed one), refined on all
+    sample = rng.permutation(len(p))[:SCORE_POINTS]
+    cost = np.concatenate([_cost(p[sample], sigma[sample], facing[sample], n[k], h[k])
+                           for k in np.array_split(keep, -(-len(keep) // 64))])
+    best: tuple[float, np.ndarray, float] | None = None
+    worst_below = 0.0
+    tried: list[tuple[np.ndarray, float]] = []
+    for k in keep[np.argsort(cost, kind="stable")]:
+        if len(tried) == REFINED:
+            break
+        # a hypothesis within 1 deg and 2 cm of one refined already refines to the same
+        if any(float(n[k] @ m) > math.cos(math.radians(1.0)) and abs(h[k] - g) < 0.02
+               for m, g in tried):
+            continue
+        tried.append((n[k], float(h[k])))
+        nk, hk = _refine(p, sigma, facing, n[k], float(h[k]))
+        r = (p @ nk + hk) / sigma
+        below = float((r < -CUT).mean())
+        tilt_ok = -nk[1] >= math.cos(math.radians(MAX_TILT_DEG))
+        if below > MAX_BELOW or not tilt_ok or not CAMERA_HEIGHT_M[0] <= hk <= CAMERA_HEIGHT_M[1]:
+            worst_below = max(worst_below, below)
+            continue
+        ck = float(_cost(p, sigma, facing, nk[None], np.array([hk]))[0])
+        if best is None or ck < best[0]:
+            best = (ck, nk, hk)
+    if best is None:
+        raise BackgroundError(path, f"no floor: every level plane under the camera has "
+                              f"measured points under it (up to {100 * worst_below:.1f}%; "
+                              f"a floor has at most {100 * MAX_BELOW:.1f}%)")
+    _, nk, hk = best
+    r = (p @ nk + hk) / sigma
+    on = (np.abs(r) < CUT) & (np.abs(facing @ nk) >= math.cos(math.radians(FACING_DEG)))
+    frac = float(on.mean())
+    if frac < MIN_FLOOR_FRACTION:
+        raise BackgroundError(path, f"no floor: the best level plane under the camera "
+                              f"holds {100 * frac:.1f}% of the measured points (at least "
+                              f"{100 * MIN_FLOOR_FRACTION:.0f}% needed)")
+    rms = float(np.sqrt(np.mean((p[on] @ nk + hk) ** 2)))
+    return FloorPlane((float(nk[0]), float(nk[1]), float(nk[2])), float(hk), frac, rms)
+
+
+# -- the free floor ---------------------------------------------------------------------
+def free_floor(depth_mm: np.ndarray, intr: Intrinsics,
+               floor: FloorPlane) -> tuple[np.ndarray, np.ndarray]:
+    """Where a person may stand: the floor seen with nothing standing on it.
+
+    Every measured point is put in the background's world frame and binned on a CELL_M
+    grid of the floor (x, z): floor points (within CUT sigma of y = 0) and obstacle points
+    (above that, up to OBSTACLE_TOP_M). A cell is free when it holds floor points and
+    fewer than MIN_OBSTACLE_POINTS obstacle points; so is the floor nearer than the view
+    reaches (:func:`_out_of_view`). Other cells seen by no point are not free (what is
+    behind a sofa's front is unknown, most likely more sofa), except single gaps between
+    free cells (small holes of the sensor); free slivers narrower than 3 cells are not.
+    Returns the grid origin (2,) float64 (x, z of cell [0, 0]'s centre) and the
+    clearance (Z, X) uint8 cm: the radius of the largest disc about each free cell's
+    centre that holds only free cells and cells beside the view (0 off the free floor;
+    capped at 2.55 m).
+    """
+    from scipy import ndimage
+
+    pts = _points(depth_mm, intr)
+    w2c = floor.world_to_camera()
+    world = (pts - w2c[:3, 3]) @ w2c[:3, :3]  # camera -> world: R^T (X - t)
+    y = world[:, 1]
+    tol = CUT * _sigma(pts)
+    on_floor = np.abs(y) <= tol
+    obstacle = (y > tol) & (y <= OBSTACLE_TOP_M)
+    x, z = world[:, 0], world[:, 2]
+    inside = ((on_floor | obstacle) & (np.abs(x) <= GRID_HALF_WIDTH_M) & (z >= 0)
+              & (z <= GRID_DEPTH_M))
+    if not inside.any():
+        return np.zeros(2), np.zeros((1, 1), np.uint8)
+    ix = np.floor(x[inside] / CELL_M).astype(np.int64)
+    iz = np.floor(z[inside] / CELL_M).astype(np.int64)
+    # from the camera's foot (the floor below the view may be free), one empty cell of
+    # border around
+    x0, z0 = int(ix.min()) - 1, -1
+    nx, nz = int(ix.max()) - x0 + 2, int(iz.max()) - z0 + 2
+    cell = (iz - z0) * nx + (ix - x0)
+    n_floor = np.bincount(cell[on_floor[inside]], minlength=nx * nz).reshape(nz, nx)
+    n_obst = np.bincount(cell[obstacle[inside]], minlength=nx * nz).reshape(nz, nx)
+    blocked = n_obst >= MIN_OBSTACLE_POINTS
+    origin = np.array([(x0 + 0.5) * CELL_M, (z0 + 0.5) * CELL_M])
+    below, beside = _out_of_view(depth_mm, intr, w2c, origin, (nz, nx))
+    free = ((n_floor > 0) | below) & ~blocked
+    # a cell seen by no point between free ones (a hole of the sensor) is free too
+    square = np.ones((3, 3), bool)
+    free |= ndimage.binary_closing(free, square) & (n_floor == 0) & ~blocked
+    # and slivers less than 3 cells wide are not (the noise of the floor points at a
+    # wall's foot puts some beyond it)
+    free = ndimage.binary_opening(free, square)
+    # a footprint may reach out of the view sideways; its centre stays on free floor
+    passable = free | (beside & ~blocked)
+    passable[[0, -1], :] = False
+    passable[:, [0, -1]] = False
+    # distance from a cell's centre to the nearest point of a cell that is not passable
+    edt = ndimage.distance_transform_edt(passable)
+    clear = np.where(free, np.maximum(edt - math.sqrt(0.5), 0.0) * CELL_M, 0.0)
+    return origin, np.minimum(np.floor(clear * 100.0), 255).astype(np.uint8)
+
+
+def _out_of_view(depth_mm: np.ndarray, intr: Intrinsics, w2c: np.ndarray, origin: np.ndarray,
+                 shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(Z, X) bool each, floor cells in front of the camera out of the measured view:
+    ``below``, under the lowest row holding a measurement, between the first and last
+    measured columns (floor nearer than the view reaches: nothing seen stands on it, since
+    whatever stood there and rose into the view would be an obstacle of the cells it
+    stands on, so a person may stand there, its feet out of view, as in real frames of
+    people near a camera); ``beside``, left of the first or right of the last measured
+    column (a person's footprint may reach there: whatever stands there is out of view,
+    and so is any part of the person it could meet)."""
+    rows = np.flatnonzero(np.asarray(depth_mm).any(1))
+    cols = np.flatnonzero(np.asarray(depth_mm).any(0))
+    if not len(rows):
+        return np.zeros(shape, bool), np.zeros(shape, bool)
+    zz, xx = np.indices(shape)
+    floor_pts = np.stack([origin[0] + xx * CELL_M, np.zeros(shape), origin[1] + zz * CELL_M], -1)
+    cam = floor_pts @ w2c[:3, :3].T + w2c[:3, 3]
+    uv = project(intr, cam)
+    with np.errstate(invalid="ignore"):
+        inside = (uv[..., 0] >= cols[0] - 0.5) & (uv[..., 0] <= cols[-1] + 0.5)
+        front = np.isfinite(uv[..., 0])
+        return (uv[..., 1] > rows[-1] + 0.5) & inside, front & ~inside
+
+
+# -- the job's backgrounds --------------------------------------------------------------
+def intrinsics_mismatch(given: Intrinsics | Sequence[float], sensor: Intrinsics) -> str | None:
+    """Why a background's intrinsics (an Intrinsics or fx, fy, cx, cy) are not the
+    sensor's, or None when they are: focal lengths within 0.2%, principal point within
+    1 px (less than 0.7 px anywhere in a 640 px image). People are rendered and sensed
+    with the sensor's camera, so the real frame must come from that camera."""
+    g = (given.fx, given.fy, given.cx, given.cy) if isinstance(given, Intrinsics) else tuple(given)
+    s = (sensor.fx, sensor.fy, sensor.cx, sensor.cy)
+    if (abs(g[0] - s[0]) <= 2e-3 * s[0] and abs(g[1] - s[1]) <= 2e-3 * s[1]
+            and abs(g[2] - s[2]) <= 1.0 and abs(g[3] - s[3]) <= 1.0):
+        return None
+    return (f"intrinsics fx {g[0]:g} fy {g[1]:g} cx {g[2]:g} cy {g[3]:g} are not the "
+            f"sensor's ({s[0]:g}, {s[1]:g}, {s[2]:g}, {s[3]:g}): people are rendered and "
+            "sensed with the sensor's camera, so a background must be taken by it (a "
+            "sensor fitted to these frames: vhgen sensor fit)")
+
+
+@dataclass(frozen=True, eq=False)
+class Backgrounds:
+    """A job's usable backgrounds, read once by :func:`load_backgrounds`.
+
+    depth_mm (N, H, W) uint16 and clearance (N, Z, X) uint8 cm (see :func:`free_floor`,
+    zero-padded to a common size) are single read-only arrays, so a job with hundreds of
+    backgrounds reaches its workers as two memory-mapped files (local workers) or shared
+    objects (Ray), not one copy per worker. origins (N, 2) float64: each grid's cell
+    [0, 0] centre (x, z). skipped: one line per file or entry left out.
+    """
+
+    files: tuple[str, ...]
+    class_names: tuple[str, ...]
+    floors: tuple[FloorPlane, ...]
+    depth_mm: np.ndarray
+    clearance: np.ndarray
+    origins: np.ndarray
+    skipped: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.files)
+
+    def get(self, i: int) -> PlacedBackground:
+        return PlacedBackground(i, self.files[i], self.floors[i], self.depth_mm[i],
+                                self.class_names[i])
+
+
+def _reachable(origin: np.ndarray, clearance: np.ndarray, reach: tuple[float, float]
+               ) -> np.ndarray:
+    """(Z, X) bool: cells whose centre is within ``reach`` (m, on the floor) of the
+    camera's foot (x = z = 0)."""
+    zz, xx = np.indices(clearance.shape)
+    d = np.hypot(origin[0] + xx * CELL_M, origin[1] + zz * CELL_M)
+    return (d >= reach[0]) & (d <= reach[1])
+
+
+def load_backgrounds(sources: Sequence[BackgroundSource], intr: Intrinsics,
+                     reach: tuple[float, float], warn: Callable[[str], None],
+                     config: str | None = None) -> Backgrounds:
+    """Read every frame of ``sources`` (files and folders, see
+    :func:`vhgen.depthfile.depth_files`), check it, find its floor and free floor.
+
+    A frame of another size than the sensor's ``intr``, with other intrinsics (see
+    :func:`intrinsics_mismatch`; a PNG has the entry's given ones, or the sensor's), with
+    no floor, or whose free floor within ``reach`` holds no disc of MIN_FREE_RADIUS_M, or
+    that cannot be read, is one ``warn`` line naming the file, and is left out; a folder
+    that leaves nothing is one line naming its field. No usable frame at all:
+    ConfigError naming ``scene.backgrounds`` (of the config file ``config``).
+    """
+    from vhgen.depthfile import depth_files, read_depth
+
+    files, classes, floors, depths, grids, origins, skipped = [], [], [], [], [], [], []
+
+    def skip(msg: str) -> None:
+        skipped.append(msg)
+        warn(msg)
+
+    for i, src in enumerate(sources):
+        given = (Intrinsics(intr.width, intr.height, *src.intrinsics)
+                 if src.intrinsics is not None else intr)
+        found = 0
+        for f in depth_files([src.path]):
+            try:
+                frame = read_depth(f, given if f.suffix.lower() == ".png" else None)
+                h, w = frame.depth_mm.shape
+                if (w, h) != (intr.width, intr.height):
+                    raise BackgroundError(f, f"{w}x{h} px, the sensor's frames are "
+                                          f"{intr.width}x{intr.height}")
+                bad = intrinsics_mismatch(frame.intrinsics or given, intr)
+                if bad:
+                    raise BackgroundError(f, bad)
+                floor = estimate_floor(frame.depth_mm, intr, str(f))
+                origin, clear = free_floor(frame.depth_mm, intr, floor)
+                room = clear[_reachable(origin, clear, reach)]
+                widest = float(room.max(initial=0)) / 100.0
+                if widest < MIN_FREE_RADIUS_M:
+                    raise BackgroundError(f, f"no free floor: the widest free circle "
+                                          f"{reach[0]:g}-{reach[1]:g} m from the camera "
+                                          f"(camera.distance_m) has a radius of {widest:.2f}"
+                                          f" m (at least {MIN_FREE_RADIUS_M} m needed)")
+            except (DepthFileError, BackgroundError) as e:
+                skip(f"skipped background {e}")
+                continue
+            files.append(str(f))
+            classes.append(src.class_name)
+            floors.append(floor)
+            depths.append(frame.depth_mm)
+            grids.append(clear)
+            origins.append(origin)
+            found += 1
+        if not found and Path(src.path).is_dir():  # a file has said why in its line
+            skip(f"scene.backgrounds[{i}]: no usable depth frame in {src.path}")
+    if not files:
+        raise ConfigError(config, "scene.backgrounds", f"no usable background frame in "
+                          f"{len(sources)} entr{'y' if len(sources) == 1 else 'ies'} "
+                          f"({len(skipped)} line{'s' if len(skipped) != 1 else ''} above say "
+                          "why)")
+    gz = max(g.shape[0] for g in grids)
+    gx = max(g.shape[1] for g in grids)
+    clearance = np.zeros((len(grids), gz, gx), np.uint8)
+    for k, g in enumerate(grids):
+        clearance[k, :g.shape[0], :g.shape[1]] = g
+    depth = np.stack(depths)
+    for a in (depth, clearance):
+        a.setflags(write=False)
+    return Backgrounds(tuple(files), tuple(classes), tuple(floors), depth, clearance,
+                       np.array(origins, np.float64), tuple(skipped))
+
+
+# -- per frame: people on a background's free floor --------------------------------------
+@dataclass(frozen=True, eq=False)
+class BackgroundLayout:
+    """What a background frame holds: the background, its camera, the people placed on
+    its floor (instance order), what did not fit, and the plan's person when another took
+    its place (``planned``: avatar id and pose index; None when it was placed)."""
+
+    background: PlacedBackground
+    camera: CameraPose
+    people: tuple[Person, ...]
+    dropped: dict[str, int] = field(default_factory=dict)
+    planned: tuple[int, int] | None = None
+
+
+def real_visible_fraction(intr: Intrinsics, joints_cam: np.ndarray,
+                          depth_mm: np.ndarray) -> float:
+    """The fraction of joints (J, 3 camera frame) in the image and not behind a real
+    surface: the real depth at the joint's pixel is no measurement, or at least z -
+    VISIBILITY_TOLERANCE_M (the test of :func:`vhgen.scene.truth.joint_visibility`)."""
+    uv = project(intr, joints_cam)
+    ok = np.isfinite(uv).all(1)
+    px = np.where(ok[:, None], np.rint(np.nan_to_num(uv)), -1).astype(np.int64)
+    ok &= (px[:, 0] >= 0) & (px[:, 0] < intr.width) & (px[:, 1] >= 0) & (px[:, 1] < intr.height)
+    real = depth_mm[np.where(ok, px[:, 1], 0), np.where(ok, px[:, 0], 0)] / 1000.0
+    clear = (real == 0) | (real >= joints_cam[:, 2] - VISIBILITY_TOLERANCE_M)
+    return float((ok & clear).mean())
+
+
+class _Floor:
+    """One background's free floor during a frame's placement."""
+
+    def __init__(self, bgs: Backgrounds, index: int, intr: Intrinsics,
+                 reach: tuple[float, float], min_visible: float):
+        self.bg = bgs.get(index)
+        self.intr = intr
+        self.w2c = self.bg.floor.world_to_camera()
+        self.origin = bgs.origins[index]
+        self.clearance = bgs.clearance[index]
+        self.reachable = _reachable(self.origin, self.clearance, reach)
+        self.min_visible = min_visible
+        self.discs: list[Disc] = []
+
+    def place(self, rng: np.random.Generator, local: Person, heading: float,
+              instance: int) -> Person | None:
+        """``local`` (posed at the origin, with its footprint) turned by ``heading`` and
+        put on a free spot: its footprint within the free floor and GAP_M clear of the
+        people already placed, at least ``min_visible`` of its joints in view past real
+        surfaces, and every person at least ``min_visible`` of its width in view past the
+        others (:func:`vhgen.scene.placement.visible_fraction`). PLACEMENT_TRIES spots are
+        drawn among the cells that fit and tried in order; None when none passes."""
+        fp = local.footprint
+        assert fp is not None
+        jitter = math.sqrt(0.5) * CELL_M  # a spot moves up to this far from its cell centre
+        fits = self.reachable & (self.clearance >= math.ceil((fp.r + GAP_M + jitter) * 100))
+        zz, xx = np.nonzero(fits)
+        cx = self.origin[0] + xx * CELL_M
+        cz = self.origin[1] + zz * CELL_M
+        for d in self.discs:
+            far = np.hypot(cx - d.x, cz - d.z) >= fp.r + d.r + GAP_M + jitter
+            cx, cz = cx[far], cz[far]
+        if not len(cx):
+            return None
+        pick = rng.integers(len(cx), size=PLACEMENT_TRIES)
+        offset = rng.uniform(-0.5, 0.5, size=(PLACEMENT_TRIES, 2)) * CELL_M
+        eye = np.zeros(2)
+        centre = yaw_transform(0.0, -fp.x, -fp.z)
+        for k, (dx, dz) in zip(pick, offset, strict=True):
+            spot = Disc(float(cx[k] + dx), float(cz[k] + dz), fp.r)
+            t = yaw_transform(heading, spot.x, spot.z) @ centre
+            joints = local.joints @ t[:3, :3].T + t[:3, 3]
+            cam = joints @ self.w2c[:3, :3].T + self.w2c[:3, 3]
+            if real_visible_fraction(self.intr, cam, self.bg.depth_mm) < self.min_visible:
+                continue
+            everyone = [*self.discs, spot]
+            if any(visible_fraction(eye, d, [o for o in everyone if o is not d])
+                   < self.min_visible for d in everyone):
+                continue
+            self.discs.append(spot)
+            return Person(instance, local.avatar_id, local.pose_index, t @ local.bones,
+                          joints, local.offset, t, spot)
+        return None
+
+
+def layout_background(rng: np.random.Generator, scene: SceneConfig, bgs: Backgrounds,
+                      intr: Intrinsics, reach: tuple[float, float], first: Person,
+                      people_from: People) -> BackgroundLayout:
+    """One background frame, from the scene stream ``rng``: the number of people, then
+    the background and the plan's person ``first`` (posed at the origin, with its
+    footprint) on its free floor, up to BACKGROUND_DRAWS backgrounds (a heading each);
+    when it fits none, up to SUBSTITUTES people drawn from ``people_from`` take its place
+    (it counts as dropped); then each further person as
+    :func:`vhgen.scene.layout.layout_scene` draws them (avatar, pose, heading), on the
+    same background, or dropped and counted. ``reach``: the people's distance from the
+    camera on the floor (m)."""
+    n_people = int(rng.integers(scene.people[0], scene.people[1] + 1))
+    dropped = {"people": 0, "props": 0}
+    planned = None
+    floor, placed = None, None
+    for k in range(SUBSTITUTES + 1):
+        local, draws = first, BACKGROUND_DRAWS
+        if k:  # the plan's person fits no background drawn: another takes its place
+            a = int(rng.integers(people_from.num_avatars))
+            pose = int(rng.integers(people_from.num_poses))
+            local, draws = people_from.pose(1, a, pose), 2
+        for _ in range(draws):
+            floor = _Floor(bgs, int(rng.integers(len(bgs))), intr, reach,
+                           scene.min_visible_fraction)
+            placed = floor.place(rng, local, float(rng.uniform(-np.pi, np.pi)), 1)
+            if placed is not None:
+                break
+        if placed is not None:
+            if k:
+                dropped["people"] += 1
+                planned = (first.avatar_id, first.pose_index)
+            break
+    if placed is None or floor is None:
+        raise BackgroundError("scene.backgrounds", f"no person fits the free floor "
+                              f"{reach[0]:g}-{reach[1]:g} m from the camera "
+                              f"(camera.distance_m) of {BACKGROUND_DRAWS + 2 * SUBSTITUTES} "
+                              "backgrounds drawn for the plan's person and "
+                              f"{SUBSTITUTES} others")
+    people = [placed]
+    for k in range(2, n_people + 1):
+        a = int(rng.integers(people_from.num_avatars))
+        pose = int(rng.integers(people_from.num_poses))
+        heading = float(rng.uniform(-np.pi, np.pi))
+        p = floor.place(rng, people_from.pose(k, a, pose), heading, len(people) + 1)
+        if p is None:
+            dropped["people"] += 1
+        else:
+            people.append(p)
+    w2c = floor.w2c
+    pitch, roll = pitch_roll_deg(w2c)
+    fp = people[0].footprint
+    assert fp is not None
+    camera = CameraPose(w2c, float(np.degrees(np.arctan2(fp.x, fp.z))),
+                        float(np.hypot(fp.x, fp.z)), floor.bg.floor.height_m, pitch, roll)
+    return BackgroundLayout(floor.bg, camera, tuple(people), dropped, planned)
