@@ -10,12 +10,15 @@ and noisy: compare the ratios, not the absolute numbers across runs):
 * skin+render: bone matrices (float64) + one draw call + readback, one process;
 * sensor: gating, noise, 1/8 px quantisation, uint16 mm encoding;
 * write: one Zarr shard of uint16 depth + uint8 labels (zstd) + its manifest part;
-* scene comparison (``--scene``): the scene config's frames beside the person-only ones,
-  interleaved in one process (in memory, then whole shards written), and then both run
+* scene comparison (``--scene``, default ``living_room`` and ``cluttered_room``): each
+  scene config's frames (as configured and with one person) beside the person-only ones,
+  all interleaved in one process (in memory, with the parts: layout, of which clutter
+  placement; GL draw and read back; sensor; then whole shards written), and then all run
   as jobs (``run_job``, local workers, the configs' worker count), the steady time per
   frame of a worker side by side. The in-process rows use one llvmpipe thread and one
   thread for numba/BLAS, as every worker does (the workers are the parallelism); set
-  ``LP_NUM_THREADS`` yourself to see more;
+  ``LP_NUM_THREADS`` yourself to see more. A short run on a shared machine:
+  ``--no-e2e --scene-frames 32 --scene-job-frames 0``;
 * end to end: ``run_job`` through Ray with the config's workers, including Ray start-up,
   and the same without start-up (render phase only);
 * real backgrounds (``--backgrounds``, a config with ``scene.backgrounds``; default
@@ -56,9 +59,12 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60, help="frames for the per-stage timings")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
     ap.add_argument("--no-e2e", action="store_true", help="skip the Ray end-to-end run")
-    ap.add_argument("--scene", default=str(REPO / "configs" / "scenes" / "living_room.yaml"),
-                    help="a scene config whose frames are timed beside --config's, "
-                         "interleaved (target: at most 1.3x); '' to skip")
+    ap.add_argument("--scene", nargs="*",
+                    default=[str(REPO / "configs" / "scenes" / f"{n}.yaml")
+                             for n in ("living_room", "cluttered_room")],
+                    help="scene configs whose frames are timed beside --config's, all "
+                         "interleaved (targets: a scene at most 1.3x a person-only frame, "
+                         "cluttered_room at most 1.5x living_room); none to skip")
     ap.add_argument("--scene-frames", type=int, default=96,
                     help="frames timed per config for the scene comparison (in memory, "
                          "then end to end: the same frames)")
@@ -91,10 +97,10 @@ def main() -> None:
     if args.backgrounds_only:
         from vhgen.assets import resolve_asset_dir
 
-        rows, notes = background_rows(args.backgrounds, args.scene, args.backend,
+        rows, notes = background_rows(args.backgrounds, _beside(args.scene), args.backend,
                                       args.background_frames, resolve_asset_dir(None))
         print_rows(rows, f"vhgen real backgrounds: {Path(args.backgrounds).name} beside "
-                   f"{Path(args.scene).name}, {os.cpu_count()} CPUs")
+                   f"{Path(_beside(args.scene)).name}, {os.cpu_count()} CPUs")
         for n in notes:
             print(n)
         return
@@ -155,18 +161,18 @@ def main() -> None:
     out_rows = [gen.render_frame(int(f)) for f in frames[: cfg.frames_per_shard]]
     t_full = time.perf_counter() - t
     rows.append(("frame (render+sensor+meta)", len(out_rows), t_full))
-    ratio = None
+    summary: list[str] = []
     if args.scene:
-        ratio = _scene_rows(args.scene, args.backend, gen, args.scene_frames, rows,
-                            asset_dir)
+        summary = _scene_rows(args.scene, args.backend, gen, args.scene_frames, rows,
+                              asset_dir)
         if args.scene_job_frames > 0:
-            ratio = (*ratio, _scene_job_rows(cfg, args.scene, args.backend,
-                                             args.scene_job_frames, rows))
-    bg_notes: list[str] = []
+            summary += _scene_job_rows(cfg, args.scene, args.backend, args.scene_job_frames,
+                                       rows)
     if args.backgrounds:
-        bg_rows, bg_notes = background_rows(args.backgrounds, args.scene, args.backend,
-                                            args.background_frames, asset_dir)
+        bg_rows, bg_notes = background_rows(args.backgrounds, _beside(args.scene),
+                                            args.backend, args.background_frames, asset_dir)
         rows += bg_rows
+        summary += bg_notes
     with tempfile.TemporaryDirectory() as tmp:
         store = Path(tmp) / "bench.zarr"
         k = cfg.frames_per_shard
@@ -206,17 +212,14 @@ def main() -> None:
               f"{1000 * sec / count:9.2f}")
     print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
           f"instances, classes; zstd {cfg.compression_level})")
-    if ratio is not None:
-        print(f"scene frame / person-only frame, end to end (shards written): {ratio[2]:.2f}x "
-              f"as configured, {ratio[3]:.2f}x with one person (target <= 1.3x); in memory "
-              f"(no write): {ratio[0]:.2f}x, {ratio[1]:.2f}x; in memory without the GL "
-              f"draw and read back (the CPU share, what a GPU worker approaches): "
-              f"{ratio[4]:.2f}x")
-        if len(ratio) > 5:
-            print(f"scene frame / person-only frame, as jobs run them (steady time per "
-                  f"frame of a worker, all workers busy): {ratio[5]:.2f}x")
-    for n in bg_notes:
-        print(n)
+    for line in summary:
+        print(line)
+
+
+def _beside(scenes: list[str]) -> str:
+    """The scene config the background rows are timed beside: the first of --scene, else
+    living_room."""
+    return scenes[0] if scenes else str(REPO / "configs" / "scenes" / "living_room.yaml")
 
 
 def _cycled(job, n: int):
@@ -229,29 +232,44 @@ def _cycled(job, n: int):
                              seeds=np.resize(p.seeds, n)))
 
 
-def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[float, ...]:
-    """Frames of the scene config timed interleaved with the person-only generator's
-    (same process, same machine state): rows for both and their ratios, first for the
-    in-memory frame (describe, render, sensor, record), then end to end: whole shards
-    written to a store as a job's worker does (``run_task``: the frames, the Zarr shard and
-    its manifest part). Both passes time the same frames (after a warm-up shard), frame i
-    of each plan (cycled when a plan is shorter). Returns (in-memory as configured,
-    in-memory one person, end to end as configured, end to end one person, in-memory
-    without GL)."""
+def _scene_rows(scene_paths, backend, gen, num_frames, rows, asset_dir) -> list[str]:
+    """Frames of each scene config timed interleaved with the person-only generator's
+    (same process, same machine state), each as configured and with exactly one person:
+    rows for all of them and the ratios, first the in-memory frame (describe, render,
+    sensor, record) with its parts (the layout, of which clutter placement; GL draw and
+    read back; the sensor), then end to end: whole shards written to a store as a job's
+    worker does (``run_task``: the frames, the Zarr shard and its manifest part). Both
+    passes time the same frames (after a warm-up shard), frame i of each plan (cycled
+    when a plan is shorter). A clutter library (built once per worker, then reused) is
+    built before the timing and its cost is a row of its own. Returns the summary lines."""
+    import vhgen.scene.layout as layout
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.job import prepare_job
+    from vhgen.scene.clutter import variant
     from vhgen.store.zarr_store import create_store
 
-    full = JobConfig.load(scene_path, backend=backend)
-    # the same room and props with exactly one person: what the scene itself costs
-    one = replace(full, scene=replace(full.scene, people=(1, 1)))
-    k = min(c.frames_per_shard for c in (gen.cfg, full, one))
+    cfgs = []
+    for path in scene_paths:
+        full = JobConfig.load(path, backend=backend)
+        # the same room, props and clutter with exactly one person: what the scene costs
+        cfgs += [full, replace(full, scene=replace(full.scene, people=(1, 1)))]
+    k = min(c.frames_per_shard for c in [gen.cfg, *cfgs])
     shards = max(2, num_frames // k)
     frames = range(k, (shards + 1) * k)  # shard 0: warm-up (avatars, zarr, pyarrow)
-    # every plan cycled to the run's length (a plan shorter than the run repeats its frames)
-    jobs = [gen.job] + [prepare_job(c, asset_dir=asset_dir) for c in (full, one)]
+    jobs = [gen.job] + [prepare_job(c, asset_dir=asset_dir) for c in cfgs]
     gens = [FrameGenerator(_cycled(j, (shards + 1) * k), context=gen.ctx) for j in jobs]
+    names = ["person only"] + [f"{c.name}{' 1 person' if i % 2 else ''}"
+                               for i, c in enumerate(cfgs)]
+    for c in cfgs[::2]:
+        cl = c.scene.clutter
+        if cl is not None and cl.variants:
+            t = time.perf_counter()
+            for kind in dict.fromkeys(cl.kinds):
+                for v in range(cl.variants):
+                    variant(kind, cl.fill, c.seed, v)
+            rows.append((f"  clutter library of {c.name} (per worker, once)", 1,
+                         time.perf_counter() - t))
     for g in gens:
         # every avatar built and uploaded first: a per-avatar cost (the "body build" row),
         # not a per-frame one, which a short run would otherwise charge to a few frames
@@ -259,27 +277,32 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
             g.scene._resident([a])
         for f in range(k):
             g.render_frame(f)
-    t_mem = [0.0, 0.0, 0.0]
-    people = [0, 0]
-    t_gl = _time_gl(gens)
+    parts = {name: {"describe": 0.0, "clutter": 0.0, "GL": 0.0, "sensor": 0.0}
+             for name in names}
+    current = [names[0]]
+    _time_part(layout, "place_clutter", parts, current, "clutter")
+    for g in gens:
+        _time_part(g.describer, "describe", parts, current, "describe")
+        _time_part(g.scene, "render", parts, current, "GL")
+        _time_part(g.sensor, "simulate", parts, current, "sensor")
+    t_mem = dict.fromkeys(names, 0.0)
+    people = dict.fromkeys(names, 0)
     for f in frames:
-        for j, g in enumerate(gens):
+        for name, g in zip(names, gens, strict=True):
+            current[0] = name
             t = time.perf_counter()
             out = g.render_frame(f)
-            t_mem[j] += time.perf_counter() - t
-            people[0] += out.record.num_people if j == 1 else 0
-    gl = [t_gl[id(g)] for g in gens]
+            t_mem[name] += time.perf_counter() - t
+            people[name] += out.record.num_people
     m = len(frames)
-    label = f"{full.name} ({people[0] / m:.2f} people)"
-    rows.append(("frame, person only (interleaved)", m, t_mem[0]))
-    rows.append((f"frame, {label}", m, t_mem[1]))
-    rows.append((f"frame, {full.name} with 1 person", m, t_mem[2]))
-    rows.append(("  of which GL (draw, read back), person only", m, gl[0]))
-    rows.append((f"  of which GL (draw, read back), {full.name}", m, gl[1]))
-    rows.append((f"  of which GL (draw, read back), {full.name} 1 person", m, gl[2]))
-
+    parts = {name: dict(p) for name, p in parts.items()}  # the end-to-end pass adds more
+    for name in names:
+        rows.append((f"frame, {name} ({people[name] / m:.2f} people)", m, t_mem[name]))
+        for part, sec in parts[name].items():
+            if sec > 0:
+                rows.append((f"  of which {part}", m, sec))
     # end to end: shards of the same frames written by each generator, interleaved
-    t_e2e = [0.0, 0.0, 0.0]
+    t_e2e = dict.fromkeys(names, 0.0)
     with tempfile.TemporaryDirectory() as tmp:
         stores = []
         for j, g in enumerate(gens):
@@ -290,18 +313,28 @@ def _scene_rows(scene_path, backend, gen, num_frames, rows, asset_dir) -> tuple[
                          frames_per_shard=k, compression_level=c.compression_level,
                          attrs={}, raw11=c.sensor.encoding.raw11)
         for sh in range(shards + 1):
-            for j, g in enumerate(gens):
+            for name, g, store in zip(names, gens, stores, strict=True):
                 t = time.perf_counter()
-                g.run_task(stores[j], sh, sh * k, sh * k + k)
+                g.run_task(store, sh, sh * k, sh * k + k)
                 if sh > 0:  # shard 0: warm-up
-                    t_e2e[j] += time.perf_counter() - t
+                    t_e2e[name] += time.perf_counter() - t
     for g in gens:
         g.close()
-    rows.append(("end to end, person only (shards)", m, t_e2e[0]))
-    rows.append((f"end to end, {label} (shards)", m, t_e2e[1]))
-    rows.append((f"end to end, {full.name} with 1 person (shards)", m, t_e2e[2]))
-    return (t_mem[1] / t_mem[0], t_mem[2] / t_mem[0], t_e2e[1] / t_e2e[0],
-            t_e2e[2] / t_e2e[0], (t_mem[1] - gl[1]) / (t_mem[0] - gl[0]))
+    for name in names:
+        rows.append((f"end to end, {name} (shards)", m, t_e2e[name]))
+    base = names[0]
+    lines = []
+    for name in names[1:]:
+        cpu = (t_mem[name] - parts[name]["GL"]) / (t_mem[base] - parts[base]["GL"])
+        lines.append(f"{name} / person only: end to end {t_e2e[name] / t_e2e[base]:.2f}x, in "
+                     f"memory {t_mem[name] / t_mem[base]:.2f}x, in memory without GL "
+                     f"{cpu:.2f}x")
+    full = names[1::2]
+    for a, b in zip(full[:-1], full[1:], strict=True):
+        lines.append(f"{b} / {a}: end to end {t_e2e[b] / t_e2e[a]:.2f}x, in memory "
+                     f"{t_mem[b] / t_mem[a]:.2f}x (target for cluttered_room / living_room: "
+                     f"<= 1.5x)")
+    return lines
 
 
 def background_rows(bg_path, scene_path, backend, num_frames, asset_dir
@@ -418,43 +451,48 @@ def background_rows(bg_path, scene_path, backend, num_frames, asset_dir
     return rows, notes
 
 
-def _scene_job_rows(cfg, scene_path, backend, num_frames, rows) -> float:
-    """Both configs run as jobs (local workers, each config's worker count, its first
+def _time_part(obj, attr: str, parts: dict, current: list, part: str) -> None:
+    """Wrap ``obj.attr`` so that its seconds add to ``parts[current[0]][part]``."""
+    fn = getattr(obj, attr)
+
+    def timed(*a, **kw):
+        t = time.perf_counter()
+        try:
+            return fn(*a, **kw)
+        finally:
+            parts[current[0]][part] += time.perf_counter() - t
+    setattr(obj, attr, timed)
+
+
+def _scene_job_rows(cfg, scene_paths, backend, num_frames, rows) -> list[str]:
+    """Each config run as jobs (local workers, each config's worker count, its first
     ``num_frames`` frames, with ``poses.frame_step`` 2 so that the builtin motion gives
     enough of them), twice, interleaved: rows of the steady seconds per frame of one
     worker (the median over its shards: render, sensor and write, with every worker of
-    the job busy) and their ratio, scene over person-only."""
+    the job busy) and their ratios, scene over person-only."""
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
-    full = JobConfig.load(scene_path, backend=backend)
-    steady = [0.0, 0.0]
-    frames = [0, 0]
+    cfgs = [cfg] + [JobConfig.load(p, backend=backend) for p in scene_paths]
+    steady = [0.0] * len(cfgs)
+    frames = [0] * len(cfgs)
     with tempfile.TemporaryDirectory() as tmp:
         for rep in range(2):
-            for j, c in enumerate((cfg, full)):
+            for j, c in enumerate(cfgs):
                 c = replace(c, poses=replace(c.poses, frame_step=min(c.poses.frame_step, 2)))
                 s = run_job(c, Path(tmp) / f"job{rep}{j}.zarr", max_frames=num_frames,
                             executor="local", progress=False)
                 steady[j] += s.steady_seconds_per_frame * s.frames
                 frames[j] += s.frames
-    rows.append((f"job, person only, per worker (x{cfg.num_workers})", frames[0], steady[0]))
-    rows.append((f"job, {full.name}, per worker (x{full.num_workers})", frames[1], steady[1]))
-    return (steady[1] / frames[1]) / (steady[0] / frames[0])
-
-
-def _time_gl(gens) -> dict[int, float]:
-    """Seconds each generator spends in its render step (GL draw and read back), by
-    id(generator): llvmpipe's share, which a GPU worker mostly does not pay."""
-    spent = {id(g): 0.0 for g in gens}
-    for g in gens:
-        def timed(desc, *a, _g=g, _render=g.scene.render, **kw):
-            t = time.perf_counter()
-            out = _render(desc, *a, **kw)
-            spent[id(_g)] += time.perf_counter() - t
-            return out
-        g.scene.render = timed
-    return spent
+    lines = []
+    for j, c in enumerate(cfgs):
+        who = "person only" if j == 0 else c.name
+        rows.append((f"job, {who}, per worker (x{c.num_workers})", frames[j], steady[j]))
+        if j:
+            lines.append(f"{c.name} / person only, as jobs run them (steady time per frame "
+                         f"of a worker, all workers busy): "
+                         f"{(steady[j] / frames[j]) / (steady[0] / frames[0]):.2f}x")
+    return lines
 
 
 def fixed_cost(cfg, steps, executors=("local", "ray")) -> list[tuple[str, int, float]]:

@@ -1,6 +1,6 @@
 """The README's Python examples run as written, in the environment the README's first
 command creates (vhgen and its dependencies, no extras), on a store made as the README's
-first command makes it (``out/default.zarr``, here limited to 8 frames)."""
+first command makes it (``out/cluttered_room.zarr``, here limited to 8 frames)."""
 
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ def test_readme_python_examples_run(tmp_path, asset_dir):
 
     blocks = python_blocks((REPO / "README.md").read_text())
     assert blocks, "the README has no Python example"
-    cfg = JobConfig.load("default", backend="osmesa", num_workers=1)
-    run_job(cfg, tmp_path / "out" / "default.zarr", max_frames=8)
+    cfg = JobConfig.load("cluttered_room", backend="osmesa", num_workers=1)
+    run_job(cfg, tmp_path / "out" / "cluttered_room.zarr", max_frames=8)
     for i, code in enumerate(blocks):
         r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                            text=True, timeout=120)

@@ -18,6 +18,7 @@ from vhgen.body.wardrobe import CARRIED_CLASS, OutfitConfig, parse_outfit
 from vhgen.camera import CameraConfig
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
+from vhgen.scene.clutter import CLUTTER_KINDS, NO_RETURN_KINDS
 from vhgen.scene.geometry import MAX_SCENE_CLASSES, SCENE_CLASSES
 from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.scene.scene_config import (
@@ -25,6 +26,7 @@ from vhgen.scene.scene_config import (
     CAMERA_CLEARANCE_M,
     PERSON_CLEARANCE_M,
     BackgroundSource,
+    ClutterConfig,
     PropsConfig,
     RoomConfig,
     SceneConfig,
@@ -436,11 +438,102 @@ def _check_background_sensor(scene: SceneConfig, sensor: SensorConfig, src) -> N
                 raise ConfigError(src, f"scene.backgrounds[{i}].intrinsics", bad)
 
 
+def _clutter(d: Any, src, props: PropsConfig | None) -> ClutterConfig:
+    """The ``scene.clutter`` section: count, kinds (names or {kind, class, weight}), fill,
+    variants."""
+    if d is True:
+        d = {}
+    check_keys(d, {"count", "kinds", "fill", "variants"}, set(), src, "scene.clutter.")
+    cd = ClutterConfig()
+    kinds_in = d.get("kinds", list(cd.kinds))
+    if not isinstance(kinds_in, list) or not kinds_in:
+        raise ConfigError(src, "scene.clutter.kinds", f"must be a non-empty list of "
+                          f"{', '.join(CLUTTER_KINDS)} (or {{kind, class, weight}} "
+                          f"mappings), got {kinds_in!r}")
+    kinds, classes, weights = [], [], []
+    for i, k in enumerate(kinds_in):
+        field = f"scene.clutter.kinds[{i}]"
+        cls, weight = None, 1.0
+        if isinstance(k, dict):
+            check_keys(k, {"kind", "class", "weight"}, {"kind"}, src, field + ".")
+            if "class" in k:
+                cls = _prop_class(k, src, field + ".class")
+            weight = _num(k, "weight", src, field + ".", lo=0.0, hi=1e6, default=1.0)
+            if weight <= 0:
+                raise ConfigError(src, field + ".weight", f"must be > 0, got {weight}")
+            field, k = field + ".kind", k["kind"]
+        if k not in CLUTTER_KINDS:
+            raise ConfigError(src, field, f"must be one of {', '.join(CLUTTER_KINDS)}, "
+                              f"got {k!r}")
+        kinds.append(k)
+        classes.append(cls or k)
+        weights.append(weight)
+    cfg = ClutterConfig(_int_range(d, "count", src, "scene.clutter.", cd.count, 0, 200),
+                        tuple(kinds), tuple(classes), tuple(weights),
+                        _range(d, "fill", src, "scene.clutter.", cd.fill, lo=0.0, hi=1.0),
+                        _num(d, "variants", src, "scene.clutter.", lo=0, hi=100000,
+                             integer=True, default=cd.variants))
+    # window glass gives no return: its class must be the glass's alone
+    others = [(f"scene.clutter.kinds[{i}]", c)
+              for i, (k, c) in enumerate(zip(kinds, classes, strict=True))
+              if k not in NO_RETURN_KINDS]
+    others.append(("the things on surfaces", cfg.objects_class))
+    if props is not None:
+        others += [("scene.props", c) for c in props.kind_classes + props.mesh_classes]
+    for i, (k, c) in enumerate(zip(kinds, classes, strict=True)):
+        if k in NO_RETURN_KINDS:
+            clash = next((who for who, o in others if o == c), None)
+            if clash is not None or c == "prop":
+                raise ConfigError(src, f"scene.clutter.kinds[{i}].class", f"windows give no "
+                                  f"return (their glass has no measurement), so their class "
+                                  f"{c!r} cannot also be that of {clash or 'props'}: give "
+                                  f"windows a class of their own")
+    return cfg
+
+
+def _check_clutter_fits(cfg: ClutterConfig, room: RoomConfig, people: tuple[int, int],
+                        props: PropsConfig | None, src) -> None:
+    """Clutter that can never fit is a load-time error: a kind larger than the largest
+    room (along a wall, or higher than its walls), or more items at the least than the
+    floor the camera sees can hold."""
+    from vhgen.scene.clutter import PIERCES_CEILING, smallest
+
+    side = max(room.width_m[1], room.depth_m[1])
+    need = 0.0
+    weights = np.array(cfg.weights) / sum(cfg.weights)
+    for i, (k, w) in enumerate(zip(cfg.kinds, weights, strict=True)):
+        shape = smallest(k)
+        x0, x1 = shape.x_extent
+        if x1 - x0 > side - 0.05:
+            raise ConfigError(src, f"scene.clutter.kinds[{i}]", f"{k} needs a wall of at "
+                              f"least {x1 - x0 + 0.05:.2f} m; scene.room allows at most "
+                              f"{side} m")
+        if k not in PIERCES_CEILING and shape.top > room.height_m[1]:
+            raise ConfigError(src, f"scene.clutter.kinds[{i}]", f"{k} is at least "
+                              f"{shape.top:.2f} m high; scene.room.height_m allows at most "
+                              f"{room.height_m[1]} m")
+        # floor taken by what stands on it (things on the walls take none)
+        need += w * sum(float(np.prod(q.max(0) - q.min(0))) for q, y0, _, inside
+                        in shape.solids if inside and y0 < 0.5)
+    # items stand where the camera sees them, about a third of the largest room's floor,
+    # shared with the people and props; each item with as much again around it. The
+    # fewest items asked for must fit there (more may be left out and counted)
+    area = room.width_m[1] * room.depth_m[1] / 3
+    n_props = props.count[0] if props is not None else 0
+    taken = np.pi * (people[0] * PERSON_CLEARANCE_M ** 2 + n_props * 0.6 ** 2)
+    if 2 * cfg.count[0] * need > area - taken:
+        raise ConfigError(src, "scene.clutter.count", f"at least {cfg.count[0]} items of "
+                          f"these kinds need about {2 * cfg.count[0] * need:.1f} m^2 of floor; "
+                          f"the largest room's floor in view offers about "
+                          f"{max(area - taken, 0):.1f} m^2 besides the people and props: "
+                          f"lower the count or enlarge scene.room")
+
+
 def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
     """The ``scene:`` section; checks at load time that a room can hold the people, the
     props and the camera at its farthest distance."""
     check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction",
-                   "backgrounds"}, set(), src, "scene.")
+                   "backgrounds", "clutter"}, set(), src, "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
@@ -449,7 +542,7 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
         backgrounds = _backgrounds(d["backgrounds"], src)
         # the real frame is the room: its floor holds the people, nothing synthetic is
         # drawn around them
-        for key in ("room", "props"):
+        for key in ("room", "props", "clutter"):
             if d.get(key) not in (None, False):
                 raise ConfigError(src, "scene.backgrounds", f"a real background is the "
                                   f"room: it cannot be combined with scene.{key}")
@@ -494,11 +587,21 @@ def _scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.room", f"room too small for {people[1]} people and "
                               f"{n_props} props: at most {area:.1f} m^2 of floor, they need "
                               f"about {2 * need_area:.1f} m^2")
+    clutter = None
+    if d.get("clutter") not in (None, False):
+        clutter = _clutter(d["clutter"], src, props)
+        if room is None or not floor:
+            raise ConfigError(src, "scene.clutter", "clutter stands on the floor and against "
+                              "walls: it needs scene.floor: true and a scene.room")
+        _check_clutter_fits(clutter, room, people, props, src)
     scene = SceneConfig(floor=floor, room=room, people=people, props=props,
                         min_visible_fraction=_num(d, "min_visible_fraction", src, "scene.",
                                                   lo=0.0, hi=1.0, default=0.5),
-                        backgrounds=backgrounds)
-    if len(scene.class_names) > MAX_SCENE_CLASSES:
-        raise ConfigError(src, "scene.backgrounds", f"{len(scene.class_names)} scene "
-                          f"classes; the uint8 classes array holds {MAX_SCENE_CLASSES}")
+                        backgrounds=backgrounds, clutter=clutter)
+    room_for = MAX_SCENE_CLASSES - len(SCENE_CLASSES)
+    if len(scene.class_names) - len(SCENE_CLASSES) > room_for:
+        raise ConfigError(src, "scene.backgrounds" if backgrounds else "scene.clutter",
+                          f"{len(scene.class_names) - len(SCENE_CLASSES)} user classes; the "
+                          f"uint8 classes array holds {room_for} besides the built-in "
+                          f"{len(SCENE_CLASSES)}")
     return scene

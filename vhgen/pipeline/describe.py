@@ -113,9 +113,13 @@ class FrameDescriber:
             return FrameDescription(frame, seed, cam, (person,), (), None, noise_state)
         srng = np.random.default_rng(np.random.SeedSequence([seed, _SCENE_STREAM]))
         reach = (job.cfg.camera.distance_m[0], job.cfg.camera.distance_m[1] + _REACH_BEYOND_M)
-        lay = layout_scene(srng, sc, cam, job.cfg.sensor.intrinsics, reach, person, self)
+        lay = layout_scene(srng, sc, cam, job.cfg.sensor.intrinsics, reach, person, self,
+                           redraw=lambda k: np.random.default_rng(
+                               np.random.SeedSequence([seed, _SCENE_STREAM, k])),
+                           library_seed=job.cfg.seed)
         return FrameDescription(frame, seed, cam, lay.people, lay.static, lay.room,
-                                noise_state, lay.props, lay.dropped)
+                                noise_state, lay.props, lay.dropped, clutter=lay.clutter,
+                                no_return=sc.no_return_ids)
 
     def _on_background(self, frame: int, seed: int, rng: np.random.Generator,
                        person: Person) -> FrameDescription:

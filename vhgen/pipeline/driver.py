@@ -191,7 +191,9 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         retries=sum(attempts.values()) - len(todo), executor=kind, store=str(out),
         poses=poses.num_poses, renderers=renderers,
         skipped=[r for r in poses.report if r["status"] != "ok"],
-        dropped={k: sum(r.dropped.get(k, 0) for r in results) for k in ("people", "props")},
+        dropped={k: sum(r.dropped.get(k, 0) for r in results)
+                 for k in dict.fromkeys(["people", "props", *(k for r in results
+                                                              for k in r.dropped)])},
         valid_fraction=float(np.mean([r.valid_pixels for r in results])
                              / (intr.width * intr.height * cfg.frames_per_shard))
         if results else 0.0,

@@ -158,6 +158,8 @@ class FrameGenerator:
         scene = None if sc.is_person_only else {
             "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None,
             "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
+        if scene is not None and sc.clutter is not None:
+            scene["clutter"] = [c.to_dict() for c in desc.clutter]
         if scene is not None and desc.background is not None:
             scene["background"] = desc.background.to_dict()
             if desc.planned is not None:  # another person took the plan's place
@@ -193,7 +195,7 @@ class FrameGenerator:
         for i, f in enumerate(range(start, stop)):
             desc = self.describe(f)
             for k, v in desc.dropped.items():
-                dropped[k] += v
+                dropped[k] = dropped.get(k, 0) + v
             o = self.render(desc)
             depth[i] = o.depth_mm
             ids["labels"][i], ids["instances"][i], ids["classes"][i] = (o.labels, o.instances,

@@ -8,7 +8,7 @@ camera's x axis) is drawn only when a sensor effect needs it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -125,6 +125,10 @@ class SceneRenderer:
             return SceneViews(self._over_background(desc, draws(w2c),
                                                     projector_baseline_m), None)
         cam = self.renderer.draw(draws(w2c))
+        if desc.no_return:  # window glass: the pixel gets no measurement (nor what is behind)
+            glass = np.isin(cam.classes, desc.no_return)
+            if glass.any():
+                cam = replace(cam, depth=np.where(glass, np.float32(0), cam.depth))
         proj = None
         if projector_baseline_m is not None:
             proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth

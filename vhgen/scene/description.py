@@ -58,6 +58,27 @@ class PlacedProp:
 
 
 @dataclass(frozen=True, eq=False)
+class PlacedClutter:
+    """A clutter item in a frame (see :mod:`vhgen.scene.clutter`): its kind and scene
+    class, the (4, 4) world transform of its own frame, the parameters that rebuild it
+    (:func:`vhgen.scene.clutter.build`), how it stands (``wall``, ``corner``, ``floor``)
+    and the wall it stands against (corner k to k + 1 of the room; -1 on the floor)."""
+
+    kind: str
+    class_name: str
+    transform: np.ndarray
+    params: Mapping[str, float]
+    mode: str
+    wall: int
+
+    def to_dict(self) -> dict:
+        """The manifest's record: enough to rebuild the item exactly."""
+        return {"kind": self.kind, "class": self.class_name, "mode": self.mode,
+                "wall": self.wall, "transform": self.transform.reshape(-1).tolist(),
+                "params": dict(self.params)}
+
+
+@dataclass(frozen=True, eq=False)
 class FrameDescription:
     """One frame, pure: people, static geometry, camera, and the seeds.
 
@@ -80,6 +101,10 @@ class FrameDescription:
     # plan's (avatar, pose) when another person took its place there
     background: PlacedBackground | None = None
     planned: tuple[int, int] | None = None
+    clutter: tuple[PlacedClutter, ...] = ()
+    # scene classes whose pixels get no measurement (window glass): the render step
+    # removes their depth before the sensor
+    no_return: tuple[int, ...] = ()
 
     def noise_rng(self) -> np.random.Generator:
         """A fresh generator at :attr:`noise_state` (the same numbers every call)."""

@@ -6,8 +6,12 @@ their bytes)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
-from vhgen.scene.geometry import PROP, SCENE_CLASSES
+import numpy as np
+
+from vhgen.scene.clutter import CLUTTER_KINDS, NO_RETURN_KINDS
+from vhgen.scene.geometry import FLOOR, PROP, SCENE_CLASSES, WALL
 from vhgen.scene.props import PARAMETRIC, PropShape
 
 # Clearances used to place a room around the person and the camera (metres): a person
@@ -63,6 +67,56 @@ class PropsConfig:
         return tuple(dict.fromkeys(names))
 
 
+OBJECTS_CLASS = "objects"  # things on surfaces, when no `objects` entry names a class
+
+
+@dataclass(frozen=True)
+class ClutterConfig:
+    """Clutter per frame (see :mod:`vhgen.scene.clutter`): how many items (uniform
+    integer in ``count``), of which kinds (drawn with ``weights``), each kind entry's scene
+    class (default: the kind's name), ``fill``: the range of the fraction of an item's
+    shelves and tops covered with things, and ``variants``: how many shapes of each kind
+    the job's library holds (built once per worker, then reused: see
+    :func:`vhgen.scene.clutter.variant`; 0 draws a new shape for every item)."""
+
+    count: tuple[int, int] = (8, 14)
+    kinds: tuple[str, ...] = CLUTTER_KINDS
+    classes: tuple[str, ...] = ()
+    weights: tuple[float, ...] = ()
+    fill: tuple[float, float] = (0.3, 0.9)
+    variants: int = 64  # shapes per kind in the job's library (0: every item new)
+
+    def __post_init__(self) -> None:
+        if not self.classes:
+            object.__setattr__(self, "classes", tuple(self.kinds))
+        if not self.weights:
+            object.__setattr__(self, "weights", (1.0,) * len(self.kinds))
+        if len(self.classes) != len(self.kinds) or len(self.weights) != len(self.kinds):
+            raise ValueError("classes / weights must match kinds")
+
+    @property
+    def objects_class(self) -> str:
+        """The class of things standing on surfaces: the ``objects`` entry's class if
+        there is one, else "objects"."""
+        for k, c in zip(self.kinds, self.classes, strict=True):
+            if k == "objects":
+                return c
+        return OBJECTS_CLASS
+
+    @property
+    def user_classes(self) -> tuple[str, ...]:
+        """The entries' classes in order, then the objects class, without repeats (and
+        without the built-in names)."""
+        names = [c for c in (*self.classes, self.objects_class) if c not in SCENE_CLASSES]
+        return tuple(dict.fromkeys(names))
+
+    @property
+    def no_return_classes(self) -> tuple[str, ...]:
+        """Classes of kinds whose surface gives no measurement (window glass)."""
+        return tuple(dict.fromkeys(c for k, c in zip(self.kinds, self.classes, strict=True)
+                                   if k in NO_RETURN_KINDS))
+
+
 @dataclass(frozen=True)
 class BackgroundSource:
     """One entry of ``scene.backgrounds``: a file or folder of real depth frames (PCD, or
@@ -89,24 +143,44 @@ class SceneConfig:
     # real depth frames people are composited into (vhgen.scene.background); with them the
     # floor is the background's and there is no room or props
     backgrounds: tuple[BackgroundSource, ...] = ()
+    clutter: ClutterConfig | None = None
+
+    @cached_property
+    def clutter_roles(self) -> dict[str, np.ndarray]:
+        """Per clutter class: the ``classes`` ids of its items' face roles (see
+        :mod:`vhgen.scene.meshkit`: its own, the things on it, wall, floor), (4,) uint8."""
+        if self.clutter is None:
+            return {}
+        obj = self.class_id(self.clutter.objects_class)
+        return {c: np.array([self.class_id(c), obj, WALL, FLOOR], np.uint8)
+                for c in self.clutter.classes}
 
     @property
     def class_names(self) -> tuple[str, ...]:
         """The names of the ``classes`` array's ids: the built-in five (background, floor,
-        wall, prop, person; ids 0-4, fixed), the props' user classes, then the classes of
-        real background pixels."""
-        user = self.props.user_classes if self.props is not None else ()
+        wall, prop, person; ids 0-4, fixed), the props' user classes, then the clutter's
+        classes not named yet, then the classes of real background pixels."""
+        own = self.props.user_classes if self.props is not None else ()
+        if self.clutter is not None:
+            own = tuple(dict.fromkeys(own + self.clutter.user_classes))
         real = tuple(b.class_name for b in self.backgrounds)
-        return SCENE_CLASSES + tuple(dict.fromkeys(user + real))
+        return SCENE_CLASSES + tuple(dict.fromkeys(own + real))
 
     def class_id(self, name: str) -> int:
         """The ``classes`` id of a class name of this scene (``prop`` = 3)."""
         return PROP if name == "prop" else self.class_names.index(name)
 
     @property
+    def no_return_ids(self) -> tuple[int, ...]:
+        """``classes`` ids whose pixels get no measurement (window glass)."""
+        if self.clutter is None:
+            return ()
+        return tuple(self.class_id(c) for c in self.clutter.no_return_classes)
+
+    @property
     def has_geometry(self) -> bool:
         return (self.floor or self.room is not None or self.props is not None
-                or bool(self.backgrounds))
+                or bool(self.backgrounds) or self.clutter is not None)
 
     @property
     def is_person_only(self) -> bool:

@@ -1,0 +1,341 @@
+"""Procedural clutter: every kind builds and rebuilds from its parameters, placement never
+intersects anything over many seeds (hypothesis), keeps people visible, records what
+rebuilds each item, and bad clutter config is one error naming the field."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.spatial import ConvexHull
+
+from vhgen.errors import ConfigError
+from vhgen.job_config import JobConfig
+from vhgen.scene.clutter import CLUTTER_KINDS, MODES, build, sample_params, smallest, variant
+from vhgen.scene.clutter_place import HIDES_ABOVE_M, HIDES_FROM_M
+from vhgen.scene.geometry import WALL, room_walls
+from vhgen.scene.meshkit import BODY, OBJECT
+from vhgen.scene.meshkit import WALL as ROLE_WALL
+from vhgen.scene.placement import TALL_PROP_M, wall_clearance
+from vhgen.scene.solids import disc_polygon, separated, visible_fraction_with
+from vhgen.scene.walls import walls_with_openings
+
+SCENE = """
+name: clutter_test
+seed: 11
+motions: [builtin:demo]
+avatars: {{count: 3}}
+poses: {{frame_step: 20}}
+camera: {{preset: tv_top_kinect, distance_m: [1.6, 2.8]}}
+scene:
+  floor: true
+  room: {{width_m: [3, 5], depth_m: [3.5, 5.5]}}
+  people: [2, 3]
+  props: {{count: [1, 2], occlusion: [0.5, 1.0]}}
+  clutter: {{count: [10, 16], variants: {variants}}}
+"""
+
+
+def _hull(xz: np.ndarray) -> np.ndarray:
+    return xz[ConvexHull(xz, qhull_options="QJ").vertices]
+
+
+def _inside_convex(poly: np.ndarray, pts: np.ndarray, tol: float = 1e-9) -> bool:
+    """All points inside the convex polygon (either winding)."""
+    e = np.roll(poly, -1, 0) - poly
+    cross = (e[None, :, 0] * (pts[:, None, 1] - poly[None, :, 1])
+             - e[None, :, 1] * (pts[:, None, 0] - poly[None, :, 0]))
+    return bool((cross >= -tol).all() or (cross <= tol).all())
+
+
+# -- the kinds ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", CLUTTER_KINDS)
+def test_kind_builds_rebuilds_and_stays_in_its_footprints(kind):
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        p = sample_params(kind, rng, float(rng.uniform(0, 1)))
+        a, b = build(kind, p), build(kind, dict(p))
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+        assert np.isfinite(a.vertices).all() and len(a.faces) > 0
+        assert a.faces.min() >= 0 and a.faces.max() < len(a.vertices)
+        assert a.vertices[:, 1].min() >= -1e-9, kind  # nothing below the floor
+        assert set(np.unique(a.groups)) == set(range(len(a.solids)))
+        for g, (poly, y0, y1, inside) in enumerate(a.solids):
+            v = a.vertices[np.unique(a.faces[a.groups == g])]
+            assert _inside_convex(poly, v[:, [0, 2]], 1e-7), (kind, g)
+            assert y0 - 1e-9 <= v[:, 1].min() and v[:, 1].max() <= y1 + 1e-9
+            if inside:  # against its wall (z = 0) or in front of it, never through it
+                assert poly[:, 1].min() >= -1e-9, (kind, g)
+        x0, x1 = a.x_extent
+        assert x0 < 0 < x1
+    s = smallest(kind)
+    assert s.x_extent[1] - s.x_extent[0] <= a.x_extent[1] - a.x_extent[0] + 1.0
+
+
+def test_window_glass_alone_has_the_window_class():
+    """Glass (no return) is the window's own class; its frame and sill are the wall's."""
+    shape = build("window", sample_params("window", np.random.default_rng(0), 0.5))
+    glass = shape.faces[shape.roles == BODY]
+    assert len(glass) == 12  # one thin box
+    gv = shape.vertices[np.unique(glass)]
+    assert np.ptp(gv[:, 2]) < 0.01  # a pane
+    assert set(np.unique(shape.roles).tolist()) == {BODY, ROLE_WALL}
+
+
+def test_surfaces_hold_objects_and_variants_are_cached():
+    p = sample_params("bookcase", np.random.default_rng(1), 0.9)
+    shape = build("bookcase", p)
+    assert (shape.roles == OBJECT).sum() > 12 * 10  # books on every shelf
+    empty = build("bookcase", {**p, "fill": 0.0})
+    assert (empty.roles == OBJECT).sum() == 0
+    a = variant("plant", (0.3, 0.9), 7, 3)
+    assert variant("plant", (0.3, 0.9), 7, 3) is a  # built once, then reused
+    assert not np.array_equal(variant("plant", (0.3, 0.9), 8, 3).vertices, a.vertices)
+    assert np.array_equal(build("plant", a.params).vertices, a.vertices)
+
+
+def test_walls_with_openings_cut_exactly_the_hole():
+    corners = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0]])
+    plain = room_walls(corners, 2.5)
+    same = walls_with_openings(corners, 2.5, {})
+    assert np.array_equal(plain.vertices, same.vertices)
+    cut = walls_with_openings(corners, 2.5, {0: [(1.0, 1.9, 0.0, 2.0)], 2: [(0.5, 1.0, 0.8, 1.6)]})
+    assert (cut.face_classes == WALL).all()
+    tri = cut.vertices[cut.faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    assert area.sum() == pytest.approx(2 * (4 + 3) * 2.5 - 0.9 * 2.0 - 0.5 * 0.8)
+    centre = tri.mean(1)  # no triangle of wall 0 inside the door
+    on0 = np.abs(centre[:, 2]) < 1e-9
+    assert not ((centre[on0, 0] > 1.0) & (centre[on0, 0] < 1.9) & (centre[on0, 1] < 2.0)).any()
+
+
+def test_solids_and_visibility_known_answers():
+    a = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert separated((a + [1.5, 0])[None], a, 0.4)[0]
+    assert not separated((a + [1.3, 0])[None], a, 0.4)[0]
+    assert not separated((a + [0.5, 0.5])[None], a, 0.0)[0]
+    oct8 = disc_polygon(0.0, 0.0, 1.0)  # circumscribed: contains the circle
+    t = np.linspace(0, 2 * np.pi, 100)
+    assert _inside_convex(oct8, np.column_stack([np.cos(t), np.sin(t)]))
+    eye = np.zeros(2)
+    wall = np.array([[-1.0, 2.0], [1.0, 2.0], [1.0, 2.2], [-1.0, 2.2]])
+    assert visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [wall]) == 0.0
+    assert visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [wall + [0, 3]]) == 1.0
+    behind = np.array([[-1.0, -2.0], [1.0, -2.0], [1.0, -2.2], [-1.0, -2.2]])  # behind the eye
+    assert visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [behind]) == 1.0
+    half = visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [wall - [1.0, 0]])
+    assert 0.3 < half < 0.7
+
+
+# -- placement over many seeds ---------------------------------------------------------
+
+
+@pytest.fixture(scope="module", params=[0, 8])
+def describer(request, tmp_path_factory, asset_dir):
+    """A cluttered scene's describer; variants 0 (every item new) and 8 (a library)."""
+    from vhgen.pipeline.describe import FrameDescriber
+    from vhgen.pipeline.job import prepare_job
+
+    p = tmp_path_factory.mktemp("clutter") / "scene.yaml"
+    p.write_text(SCENE.format(variants=request.param))
+    job = prepare_job(JobConfig.load(p), asset_dir=asset_dir)
+    return FrameDescriber(job)
+
+
+def _describe(d, seed: int):
+    from vhgen.pipeline.describe import FrameDescriber
+
+    job = d.job
+    plan = replace(job.plan, num_frames=1, avatar_id=np.array([seed % len(job.plan.avatars)]),
+                   pose_index=np.array([seed % job.poses.num_poses]),
+                   seeds=np.array([seed], np.uint64))
+    one = FrameDescriber(replace(job, plan=plan), d._bodies)
+    return one, one.describe(0)
+
+
+def _things(d, desc):
+    """(owner, xz hull, y0, y1) of every person, prop and clutter part, from the meshes
+    (people skinned, clutter rebuilt from its manifest record and compared to what the
+    frame draws)."""
+    from vhgen.body.skinning import skin_vertices
+
+    sc = d.job.cfg.scene
+    out = []
+    for k, p in enumerate(desc.people):
+        b = d.body(p.avatar_id)
+        v = skin_vertices(b.vertices, b.joints, b.weights, p.bones)
+        assert v[:, 1].min() > -1e-6
+        out.append((f"person{k}", _hull(v[:, [0, 2]]), v[:, 1].min(), v[:, 1].max(), True))
+    static = [m for m in desc.static if m.name.startswith("clutter:")]
+    assert len(static) == len(desc.clutter)
+    for k, m in enumerate(desc.static):
+        if m.name.startswith("prop:"):
+            out.append((f"prop{k}", _hull(m.vertices[:, [0, 2]]), 0.0,
+                         m.vertices[:, 1].max(), True))
+    for k, (item, mesh) in enumerate(zip(desc.clutter, static, strict=True)):
+        rec = item.to_dict()
+        shape = build(rec["kind"], rec["params"])
+        t = np.array(rec["transform"]).reshape(4, 4)
+        world = shape.vertices @ t[:3, :3].T + t[:3, 3]
+        assert np.allclose(world, mesh.vertices, atol=1e-9), item.kind
+        assert np.array_equal(mesh.face_classes, sc.clutter_roles[rec["class"]][shape.roles])
+        assert rec["mode"] in dict(MODES[rec["kind"]])
+        for g, (_, y0, y1, inside) in enumerate(shape.solids):
+            v = world[np.unique(shape.faces[shape.groups == g])]
+            clear = wall_clearance(desc.room, v[:, [0, 2]])
+            if inside:
+                assert clear.min() >= -1e-9, (item.kind, g)  # in the room
+            else:
+                assert clear.max() <= 0.005 + 1e-9, (item.kind, g)  # behind its wall
+            assert v[:, 1].min() >= y0 - 1e-9 and v[:, 1].max() <= y1 + 1e-9
+            out.append((f"clutter{k}", _hull(v[:, [0, 2]]), y0, y1, inside))
+    return out
+
+
+def _people_visible(d, desc) -> None:
+    """Every person keeps min_visible_fraction of its width past nearer people, tall
+    props and clutter that hides people (the floor-plan measure placement uses)."""
+    sc = d.job.cfg.scene
+    eye = desc.camera.eye[[0, 2]]
+    tall_props = [(p.footprint.x, p.footprint.z, p.footprint.r) for p, m in
+                  zip(desc.props, [m for m in desc.static if m.name.startswith("prop:")],
+                      strict=True) if m.vertices[:, 1].max() >= TALL_PROP_M]
+    hiding = []
+    for item in desc.clutter:
+        shape = build(item.kind, item.params)
+        t = item.transform
+        for poly, y0, y1, inside in shape.solids:
+            if inside and y1 >= HIDES_ABOVE_M and y0 < HIDES_FROM_M:
+                xz = poly @ t[[0, 2]][:, [0, 2]].T + t[[0, 2], 3]
+                hiding.append(xz)
+    feet = [p.footprint for p in desc.people]
+    for p in feet:
+        others = [(q.x, q.z, q.r) for q in feet if q is not p] + tall_props
+        vis = visible_fraction_with(eye, np.array([p.x, p.z]), p.r, others, hiding)
+        assert vis >= sc.min_visible_fraction - 1e-9
+
+
+@given(seed=st.integers(0, 2 ** 63 - 1))
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])
+def test_clutter_never_intersects_and_keeps_people_visible(describer, seed):
+    d, desc = _describe(describer, seed)
+    assert desc.room is not None
+    things = _things(d, desc)
+    for i in range(len(things)):
+        for j in range(i):
+            a, b = things[i], things[j]
+            if a[0] == b[0] or a[2] >= b[3] or b[2] >= a[3]:
+                continue  # parts of one item, or one above the other
+            assert separated(a[1][None], b[1], 0.0)[0], (seed, a[0], b[0])
+    _people_visible(d, desc)
+    n = d.job.cfg.scene.clutter.count
+    assert len(desc.clutter) + desc.dropped["clutter"] >= n[0]
+    assert len(desc.clutter) + desc.dropped["clutter"] <= n[1]
+
+
+def test_cluttered_room_density_over_seeds(asset_dir):
+    """The shipped preset: most items asked for find a place, of every kind, against
+    walls, in corners and on the floor."""
+    from vhgen.pipeline.describe import FrameDescriber
+    from vhgen.pipeline.job import prepare_job
+
+    d = FrameDescriber(prepare_job(JobConfig.load("cluttered_room"), asset_dir=asset_dir))
+    placed = dropped = 0
+    kinds, modes = set(), set()
+    n = 60
+    for seed in range(n):
+        _, desc = _describe(d, 1000 + seed)
+        placed += len(desc.clutter)
+        dropped += desc.dropped["clutter"]
+        kinds |= {c.kind for c in desc.clutter}
+        modes |= {c.mode for c in desc.clutter}
+    assert placed > 2 * dropped and placed > 4.5 * n, (placed, dropped)
+    assert kinds == set(CLUTTER_KINDS) and modes == {"wall", "corner", "floor"}
+
+
+# -- people count ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["living_room", "cluttered_room"])
+def test_people_count_follows_the_range(name, asset_dir):
+    """people: [1, 3]: each count in about a third of the frames (bounded redraws of the
+    layout); what still does not fit is counted."""
+    from vhgen.pipeline.describe import FrameDescriber
+    from vhgen.pipeline.job import prepare_job
+    from vhgen.pipeline.plan import frame_seed
+
+    job = prepare_job(JobConfig.load(name), asset_dir=asset_dir)
+    n = 240
+    na = len(job.plan.avatars)
+    plan = replace(job.plan, num_frames=n, avatar_id=np.arange(n) % na,
+                   pose_index=np.arange(n) % job.poses.num_poses,
+                   seeds=np.array([frame_seed(5, 0, k) for k in range(n)], np.uint64))
+    d = FrameDescriber(replace(job, plan=plan))
+    counts, dropped = [], 0
+    for f in range(n):
+        desc = d.describe(f)
+        counts.append(len(desc.people))
+        dropped += desc.dropped["people"]
+    share = np.bincount(counts, minlength=4)[1:] / n
+    assert np.all(np.abs(share - 1 / 3) < 0.07), share
+    assert dropped / n < 0.05
+
+
+# -- bad input ---------------------------------------------------------------------------
+
+
+BAD = """
+name: bad
+seed: 1
+motions: [builtin:demo]
+camera: {{distance_m: [0.3, 0.4]}}
+scene:
+  floor: true
+  room: {room}
+  clutter: {clutter}
+"""
+
+
+@pytest.mark.parametrize("room,clutter,field", [
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{kinds: [bookcase, sofa]}", "scene.clutter.kinds[1]"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{count: [8, 3]}", "scene.clutter.count"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{fill: [0.2, 1.5]}", "scene.clutter.fill"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{kinds: [{kind: plant, weight: -1}]}",
+     "scene.clutter.kinds[0].weight"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{kinds: [{kind: plant, class: floor}]}",
+     "scene.clutter.kinds[0].class"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}",
+     "{kinds: [{kind: window, class: stuff}, {kind: plant, class: stuff}]}",
+     "scene.clutter.kinds[0].class"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{count: [60, 80]}", "scene.clutter.count"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{variants: -2}", "scene.clutter.variants"),
+    ("{width_m: [4, 6], depth_m: [5, 7], height_m: [1.5, 1.8]}", "{kinds: [door]}",
+     "scene.clutter.kinds[0]"),
+    ("false", "{count: [2, 3]}", "scene.clutter"),
+    ("{width_m: [4, 6], depth_m: [5, 7]}", "{counts: [2, 3]}", "scene.clutter.counts"),
+])
+def test_bad_clutter_is_one_line_naming_the_field(tmp_path: Path, room, clutter, field):
+    p = tmp_path / "bad.yaml"
+    p.write_text(BAD.format(room=room, clutter=clutter))
+    with pytest.raises(ConfigError) as e:
+        JobConfig.load(p)
+    assert e.value.field == field, str(e.value)
+    assert "\n" not in str(e.value) and str(p) in str(e.value)
+
+
+def test_clutter_classes_follow_props_and_merge(tmp_path: Path):
+    p = tmp_path / "c.yaml"
+    p.write_text(BAD.format(room="{width_m: [4, 6], depth_m: [5, 7]}", clutter=(
+        "{kinds: [{kind: boxes, class: stuff}, {kind: bag, class: stuff}, plant, "
+        "{kind: window, class: glass}, {kind: objects, class: small}]}")))
+    sc = JobConfig.load(p).scene
+    assert sc.class_names[5:] == ("stuff", "plant", "glass", "small")
+    assert sc.no_return_ids == (sc.class_names.index("glass"),)
+    assert sc.clutter.objects_class == "small"

@@ -1,0 +1,165 @@
+"""Procedural clutter: what makes a room look lived in (pure; the scene stream's generator).
+
+Shelves and bookcases full of books and things, plants (trunk, branches, leaves), stairs,
+TVs on stands, desks with a monitor and an office chair, floor lamps, radiators, windows
+(glass gives no return), curtains, doors open at an angle onto a corridor, boxes, bags,
+objects on the floor and on every surface, pictures and shelves on the walls. Each kind
+is built from instanced unit primitives (:mod:`vhgen.scene.meshkit`) by a builder of
+:mod:`vhgen.scene.clutter_kinds`, from a parameter dict that rebuilds it exactly
+(:func:`build`); :mod:`vhgen.scene.clutter_place` puts the items against walls, in
+corners, on the walls and on the floor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+from types import MappingProxyType
+
+import numpy as np
+
+from vhgen.scene.clutter_kinds import BUILDERS, RANGES
+from vhgen.scene.meshkit import Kit
+from vhgen.scene.solids import rect
+
+CLUTTER_KINDS: tuple[str, ...] = tuple(RANGES)
+
+# Where each kind stands, with weights: "wall" (its back to a wall, anywhere along it),
+# "corner" (its back to a wall and a side to the next), "floor" (anywhere, any heading).
+# Wall-mounted kinds (shelf, picture, window, radiator) are "wall" kinds whose
+# footprints start above the floor; a door is a wall kind that cuts an opening.
+MODES: dict[str, tuple[tuple[str, float], ...]] = {
+    "bookcase": (("wall", 0.7), ("corner", 0.3)),
+    "shelf": (("wall", 1.0),),
+    "cabinet": (("wall", 0.8), ("corner", 0.2)),
+    "desk": (("wall", 0.7), ("corner", 0.3)),
+    "tv": (("wall", 1.0),),
+    "table": (("floor", 0.5), ("wall", 0.5)),
+    "plant": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
+    "stairs": (("corner", 0.6), ("wall", 0.4)),
+    "lamp": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
+    "radiator": (("wall", 1.0),),
+    "window": (("wall", 1.0),),
+    "curtain": (("wall", 0.5), ("corner", 0.5)),
+    "door": (("wall", 1.0),),
+    "boxes": (("wall", 0.4), ("corner", 0.3), ("floor", 0.3)),
+    "bag": (("wall", 0.4), ("floor", 0.6)),
+    "objects": (("floor", 0.6), ("wall", 0.4)),
+    "picture": (("wall", 1.0),),
+}
+# A room rarely holds two staircases or three TVs: each item of a kind already drawn for
+# the frame multiplies that kind's weight by this (others by REPEAT_DEFAULT); a config
+# that lists one kind still gets all its items, as the weights are shares.
+REPEAT = {"stairs": 0.05, "tv": 0.05, "door": 0.1, "desk": 0.2, "table": 0.3}
+REPEAT_DEFAULT = 0.5
+NO_RETURN_KINDS = ("window",)  # their class (the glass) gives no measurement
+PIERCES_CEILING = ("stairs",)  # may rise above the walls (to an upper floor)
+_CENTRED = ("plant", "lamp")  # built about the y axis: moved back onto z >= 0
+
+
+@dataclass(frozen=True, eq=False)
+class ClutterShape:
+    """A clutter item in its own frame (see :mod:`vhgen.scene.clutter_kinds`): vertices
+    (V, 3) float64, faces (T, 3) int64, per-face roles (T,) uint8 (meshkit BODY, OBJECT,
+    WALL, FLOOR) and groups (T,) uint8; ``solids``: per group (polygon (P, 2) (x, z),
+    y0, y1, inside); ``opening``: (x0, x1, y0, y1) of the hole a door cuts in its wall,
+    or None; ``params``: what :func:`build` takes to rebuild it."""
+
+    kind: str
+    params: Mapping[str, float]
+    vertices: np.ndarray
+    faces: np.ndarray
+    roles: np.ndarray
+    groups: np.ndarray
+    solids: tuple[tuple[np.ndarray, float, float, bool], ...]
+    opening: tuple[float, float, float, float] | None = None
+
+    @cached_property
+    def inner_box(self) -> np.ndarray:
+        """(2, 2) [[x min, z min], [x max, z max]] of its footprints inside the room."""
+        p = np.concatenate([q for q, _, _, inside in self.solids if inside])
+        return np.stack([p.min(0), p.max(0)])
+
+    @property
+    def x_extent(self) -> tuple[float, float]:
+        """(lo, hi) x of its footprints inside the room (along the wall)."""
+        return float(self.inner_box[0, 0]), float(self.inner_box[1, 0])
+
+    @property
+    def centre(self) -> np.ndarray:
+        """(x, z) of the middle of its footprints inside the room."""
+        return self.inner_box.mean(0)
+
+    @cached_property
+    def inner_heights(self) -> tuple[float, float]:
+        """The lowest and highest point of its footprints inside the room."""
+        return (min(y0 for _, y0, _, inside in self.solids if inside),
+                max(y1 for _, _, y1, inside in self.solids if inside))
+
+    @cached_property
+    def top(self) -> float:
+        return max(s[2] for s in self.solids)
+
+
+def sample_params(kind: str, rng: np.random.Generator, fill: float) -> dict[str, float]:
+    """The kind's top-level sizes, uniform in :data:`RANGES` (one draw each, from the scene
+    stream), the frame's ``fill`` (how full its surfaces are) and a ``seed`` for its
+    details."""
+    ranges = RANGES[kind]
+    u = rng.uniform(size=len(ranges))
+    p = {k: float(lo + ui * (hi - lo)) for (k, (lo, hi)), ui in zip(ranges.items(), u,
+                                                                     strict=True)}
+    p["fill"] = float(fill)
+    p["seed"] = int(rng.integers(2 ** 62))
+    return p
+
+
+def build(kind: str, params: Mapping[str, float]) -> ClutterShape:
+    """The item of ``kind`` with ``params`` (as :func:`sample_params` draws them, or as
+    the manifest records them): the same mesh every time."""
+    if kind not in BUILDERS:
+        raise ValueError(f"unknown clutter kind {kind!r}")
+    p = dict(params)
+    kit = Kit()
+    explicit = BUILDERS[kind](kit, p, np.random.default_rng(int(p["seed"]))) or []
+    v, f, roles, groups = kit.build()
+    if kind in _CENTRED:  # about the y axis: its box centred in x, its back on z = 0
+        lo, hi = v.min(0), v.max(0)
+        v = v - np.array([(lo[0] + hi[0]) / 2, 0.0, lo[2]])
+    solids = []
+    for gid in range(int(groups.max()) + 1 if len(groups) else 0):
+        if gid < len(explicit):
+            poly, y0, y1, inside = explicit[gid]
+            solids.append((np.asarray(poly, np.float64), float(y0), float(y1), bool(inside)))
+            continue
+        idx = np.unique(f[groups == gid])
+        if not len(idx):
+            continue
+        lo, hi = v[idx].min(0), v[idx].max(0)
+        solids.append((rect(lo[0], hi[0], lo[2], hi[2]), float(lo[1]), float(hi[1]), True))
+    opening = None
+    if kind == "door":
+        opening = (-p["w"] / 2, p["w"] / 2, 0.0, p["h"])
+    for a in (v, f, roles, groups):
+        a.setflags(write=False)
+    return ClutterShape(kind, MappingProxyType(p), v, f, roles, groups, tuple(solids),
+                        opening)
+
+
+@lru_cache(maxsize=4096)
+def variant(kind: str, fill: tuple[float, float], library_seed: int, index: int
+            ) -> ClutterShape:
+    """Variant ``index`` of ``kind`` in the job's library (``library_seed``): its
+    parameters (sizes, ``fill`` drawn from its range, details) come from a generator of
+    its own, so a worker builds each variant once and keeps it; the parameters rebuild it
+    with :func:`build`. A frame draws which variants it shows."""
+    rng = np.random.default_rng([library_seed, CLUTTER_KINDS.index(kind), index])
+    return build(kind, sample_params(kind, rng, float(rng.uniform(*fill))))
+
+
+def smallest(kind: str) -> ClutterShape:
+    """The kind at the low end of every range (its smallest size), for load-time checks."""
+    p: dict[str, float] = {k: lo for k, (lo, _hi) in RANGES[kind].items()}
+    p.update(fill=0.0, seed=0)
+    return build(kind, p)
