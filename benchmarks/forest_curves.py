@@ -157,6 +157,8 @@ def main() -> None:
     ap.add_argument("--real", action="store_true",
                     help="the realism study on real frames (see real_study)")
     ap.add_argument("--out", default=str(REPO / "out" / "forest_study"))
+    ap.add_argument("--data", help="--real: where the generated stores go (default "
+                    "OUT/real_data)")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
     ap.add_argument("--workers", type=int, default=2, help="generation workers")
     args = ap.parse_args()
@@ -164,7 +166,7 @@ def main() -> None:
         from forest_real import real_study
 
         real_study(Path(args.out), quick=args.quick, backend=args.backend,
-                   workers=args.workers)
+                   workers=args.workers, data=Path(args.data) if args.data else None)
         return
     from vhgen.forest.from_stores import train_forest
     from vhgen.forest.train import TrainParams

@@ -21,7 +21,8 @@ Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR]``. Steps:
    Its largest forest is the recommended one (exported with ``forest export --format pcl``).
 
 Writes DIR/real_study.json, real_study.txt, real_ablation.png, real_curve.png and the
-check frames' sheets of the recommended forest (real_sheet.png, real_sheet_segment.png).
+check frames' sheets of the recommended forest (real_sheet.png, real_sheet_segment.png);
+the generated stores go to ``--data`` (default DIR/real_data) and are reused by a rerun.
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ QUICK = {"frames": 140, "frame_step": 80, "avatars": 1, "curve_step": 40, "curve
          "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
                     "thresholds": 15, "min_samples": 8}}
 FULL = {"frames": 1120, "frame_step": 40, "avatars": 4, "curve_step": 10, "curve_avatars": 4,
-        "curve": [280, 560, 1120, 2240, 4480, 8960], "test_step": 10, "test_frames": 240,
+        "curve": [560, 1120, 2240, 4480, 8960], "test_step": 10, "test_frames": 240,
         "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
                    "thresholds": 25, "min_samples": 16}}
 
@@ -156,14 +157,40 @@ def synthetic_score(forest: Any, test: str) -> float:
     return float(evaluate(forest, [store_info(test)])["mean_per_class"])
 
 
-def real_study(out: Path, *, quick: bool, backend: str, workers: int) -> dict:
-    """Steps 1-4 of the module docstring; returns and writes the results."""
+def _forest(stores: list[str], params: Any, n: int, cache: Path) -> Any:
+    """The forest of ``n`` frames of ``stores`` (a seeded subset), trained once: kept in
+    ``cache`` and loaded by a rerun (the same stores, frames and settings give the same
+    forest)."""
+    import hashlib
+
     from vhgen.forest.from_stores import train_forest
+    from vhgen.forest.trees import Forest
+
+    key = hashlib.sha1(json.dumps([stores, n, dataclasses.asdict(params)]).encode()
+                       ).hexdigest()[:12]
+    path = cache / f"forest_{n}_{key}.npz"
+    if path.is_file():
+        return Forest.load(path)
+    forest = train_forest(stores, params, max_frames=n)
+    cache.mkdir(parents=True, exist_ok=True)
+    forest.save(path)
+    return forest
+
+
+def _write(res: dict, out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "real_study.json").write_text(json.dumps(res, indent=1))
+
+
+def real_study(out: Path, *, quick: bool, backend: str, workers: int,
+               data: Path | None = None) -> dict:
+    """Steps 1-4 of the module docstring; returns and writes the results. ``data``: where
+    the generated stores go (default OUT/real_data; kept and reused by a rerun)."""
     from vhgen.forest.train import TrainParams
 
     t0 = time.perf_counter()
     plan = QUICK if quick else FULL
-    data = out / "real_data"
+    data = data if data is not None else out / "real_data"
     params = TrainParams(seed=1, **plan["params"])
     n = plan["frames"]
     test_cfg = config("people_test", {}, data / "configs" / "test.yaml", plan["test_step"])
@@ -187,7 +214,7 @@ def real_study(out: Path, *, quick: bool, backend: str, workers: int) -> dict:
             stores.append(g["store"])
             rates.append(g)
         stores_of[name] = stores
-        forest = train_forest(stores, params, max_frames=n)
+        forest = _forest(stores, params, n, data / "forests")
         n_used = forest.meta["frames"]
         row = {"setting": name, "frames": n_used, "train_seconds": forest.meta["train_seconds"],
                "generator_frames_per_second": float(np.mean([r["frames_per_second"]
@@ -197,15 +224,17 @@ def real_study(out: Path, *, quick: bool, backend: str, workers: int) -> dict:
                "synthetic_mean_per_class": synthetic_score(forest, test["store"]),
                "real": real_scores(forest)}
         res["ablation"].append(row)
+        _write(res, out)
         print(_row(row), flush=True)
     res["curve"] = []
     largest = None
     for m in plan["curve"]:
-        forest = train_forest(stores_of[BEST], params, max_frames=m)
+        forest = _forest(stores_of[BEST], params, m, data / "forests")
         row = {"frames": m, "train_seconds": forest.meta["train_seconds"],
                "synthetic_mean_per_class": synthetic_score(forest, test["store"]),
                "real": real_scores(forest)}
         res["curve"].append(row)
+        _write(res, out)
         print(f"curve {m}: " + _row({**row, "setting": BEST}), flush=True)
         largest = forest
     assert largest is not None
