@@ -1,7 +1,11 @@
-"""What the frames teach: body-part forest accuracy vs data, depth, trees and sensor realism.
+"""What the frames teach: body-part forest accuracy vs data, depth, trees and sensor realism
+(the synthetic study), and what each realism measure buys on a real sensor (``--real``).
 
     .venv/bin/python benchmarks/forest_curves.py [--quick] [--out out/forest_study]
         [--backend egl] [--workers N]
+    .venv/bin/python benchmarks/forest_curves.py --real [--quick] [--out docs/forest_study]
+
+The real study is described in :func:`real_study`; what follows is the synthetic one.
 
 1. Generates (or reuses, in OUT/data) the frames: training frames from
    configs/forest/train.yaml (CMU subjects 01, 02, 05, 09, 10 and the emotional-walk clips,
@@ -150,10 +154,20 @@ def table(res: dict) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (minutes)")
+    ap.add_argument("--real", action="store_true",
+                    help="the realism study on real frames (see real_study)")
     ap.add_argument("--out", default=str(REPO / "out" / "forest_study"))
+    ap.add_argument("--data", help="--real: where the generated stores go (default "
+                    "OUT/real_data)")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
     ap.add_argument("--workers", type=int, default=2, help="generation workers")
     args = ap.parse_args()
+    if args.real:
+        from forest_real import real_study
+
+        real_study(Path(args.out), quick=args.quick, backend=args.backend,
+                   workers=args.workers, data=Path(args.data) if args.data else None)
+        return
     from vhgen.forest.from_stores import train_forest
     from vhgen.forest.train import TrainParams
     from vhgen.forest.trees import first_trees, truncate

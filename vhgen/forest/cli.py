@@ -74,10 +74,41 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
+    if not (args.stores or args.real or args.nobody):
+        raise ForestError("forest eval: give test stores, --real frames or --nobody frames")
+    forest = load_any_forest(args.forest, fx=args.fx)
+    out: dict[str, Any] = {"forest": str(args.forest)}
+    if args.stores:
+        out.update(_eval_stores(forest, args))
+    if args.real or args.nobody:
+        out["real"] = _eval_real(forest, args)
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(out, indent=1))
+    return 0
+
+
+def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
+    from vhgen.forest.realeval import evaluate_real, load_real_frames, table
+
+    frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn)
+    for f in frames:
+        if f.frame.intrinsics is not None:
+            check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
+    res = evaluate_real(labeller(forest, args.segment, args.fx), frames, out_dir=args.out,
+                        colors=forest.meta.get("label_colors"),
+                        num_classes=forest.num_classes)
+    res["segment"] = bool(args.segment)
+    print(table(res))
+    if args.out:
+        print(f"wrote {args.out}/real_sheet.png")
+    return res
+
+
+def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
     from vhgen.forest.data import check_compatible, store_info
     from vhgen.forest.evaluate import evaluate, table
 
-    forest = load_any_forest(args.forest, fx=args.fx)
     infos = [store_info(s) for s in args.stores]
     ref = check_compatible(infos, "test")
     names = list(forest.meta.get("label_names", []))
@@ -92,13 +123,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if res["frames_per_second"]:
         print(f"inference: {res['frames_per_second']:.1f} frames/s over {res['frames']} "
               "frames (all threads)")
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({**res, "forest": str(args.forest),
-                                               "stores": args.stores}, indent=1))
     if args.out:
         print(f"wrote {args.out}/confusion.png, {args.out}/contact_sheet.png")
-    return 0
+    return {**res, "stores": args.stores}
 
 
 def read_label_input(path: str) -> Any:
@@ -116,19 +143,48 @@ def read_label_input(path: str) -> Any:
     return frame
 
 
-def _cmd_label(args: argparse.Namespace) -> int:
+def frame_intrinsics(frame: Any, forest: Any, fx: float | None = None) -> Any:
+    """The intrinsics of a real frame: recovered from its cloud, else a pinhole centred
+    on the image with ``fx`` (default: the forest's training focal length)."""
+    from vhgen.camera import Intrinsics
+
+    if frame.intrinsics is not None:
+        return frame.intrinsics
+    f = float(fx if fx is not None else forest.meta.get("fx") or 525.0)
+    h, w = frame.depth_mm.shape
+    return Intrinsics(w, h, f, f, (w - 1) / 2, (h - 1) / 2)
+
+
+def labeller(forest: Any, segment: bool, fx: float | None = None) -> Any:
+    """frame -> (H, W) uint8 labels: the forest, then (``segment``) the segmentation
+    stage of :mod:`vhgen.forest.segment`."""
     import numpy as np
+
+    from vhgen.forest.segment import Segmenter
+    from vhgen.forest.trees import Predictor
+
+    predictor, seg = Predictor(forest), Segmenter()
+
+    def label(frame: Any) -> Any:
+        labels = predictor.predict(np.asarray(frame.depth_mm))
+        if segment:
+            labels = seg.apply(frame.depth_mm, frame_intrinsics(frame, forest, fx), labels)
+        return labels
+
+    return label
+
+
+def _cmd_label(args: argparse.Namespace) -> int:
     from PIL import Image
 
     from vhgen.forest.evaluate import palette_for
-    from vhgen.forest.trees import Predictor
 
     forest = load_any_forest(args.forest)
     frame = read_label_input(args.depth)
     fx = args.fx if args.fx is not None else (
         frame.intrinsics.fx if frame.intrinsics is not None else None)
     check_focal(forest, fx, args.depth)
-    labels = Predictor(forest).predict(np.asarray(frame.depth_mm))
+    labels = labeller(forest, args.segment, fx)(frame)
     img = Image.fromarray(labels, mode="P")
     pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
     img.putpalette(pal.ravel().tolist())
@@ -194,12 +250,26 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     t.add_argument("--quiet", action="store_true", help="no per-level progress")
     t.set_defaults(func=_cmd_train)
 
-    e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores")
+    e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores and on real "
+                                     "frames (person/background)")
     e.add_argument("forest", type=A.text("forest"), help="forest .npz (or a PCL tree directory)")
-    e.add_argument("stores", nargs="+", type=A.text("store"), help="test stores")
+    e.add_argument("stores", nargs="*", type=A.text("store"), help="test stores")
+    e.add_argument("--real", nargs="+", default=[], type=A.existing_path(),
+                   metavar="PATH", help="real frames with people (PCD or 16-bit mm PNG; "
+                   "files or folders), each with a person mask (see --masks)")
+    e.add_argument("--nobody", nargs="+", default=[], type=A.existing_path(),
+                   metavar="PATH", help="real frames with nobody in them (every pixel is "
+                   "background)")
+    e.add_argument("--segment", action="store_true",
+                   help="real frames: the segmentation stage after the forest (as forest "
+                        "label --segment)")
+    e.add_argument("--masks", type=A.existing_path(),
+                   help="folder of person masks, <frame name>.png (8-bit, 0 = not a person); "
+                        "default: <frame name>.mask.png beside each frame")
     e.add_argument("--json", type=A.output_path(".json"), help="write the scores here")
     e.add_argument("--out", type=A.output_path(),
-                   help="folder for confusion.png and contact_sheet.png")
+                   help="folder for confusion.png and contact_sheet.png (stores) and "
+                        "real_sheet.png (real frames)")
     e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
     e.add_argument("--fx", type=A.float_range(0, lo_open=True),
                    help="training focal length of PCL trees (for the focal-length check)")
@@ -216,6 +286,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
                     help="focal length of the depth camera (px): warn if it differs from "
                          "the training one (default for a PCD: the recovered one)")
+    lb.add_argument("--segment", action="store_true",
+                    help="remove floor and walls, cluster the rest, and keep body parts "
+                         "only in clusters the forest calls a person (see README)")
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")
