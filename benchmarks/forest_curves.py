@@ -159,6 +159,10 @@ def main() -> None:
     ap.add_argument("--out", default=str(REPO / "out" / "forest_study"))
     ap.add_argument("--data", help="--real: where the generated stores go (default "
                     "OUT/real_data)")
+    ap.add_argument("--frames", type=int, help="--real: training frames of each ablation "
+                    "row (default 1120; 140 with --quick)")
+    ap.add_argument("--curve", help="--real: training frames of the curve, comma-separated "
+                    "(default 560,1120,2240,4480,8960)")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
     ap.add_argument("--workers", type=int, default=2, help="generation workers")
     args = ap.parse_args()
@@ -166,7 +170,9 @@ def main() -> None:
         from forest_real import real_study
 
         real_study(Path(args.out), quick=args.quick, backend=args.backend,
-                   workers=args.workers, data=Path(args.data) if args.data else None)
+                   workers=args.workers, data=Path(args.data) if args.data else None,
+                   frames=args.frames,
+                   curve=[int(c) for c in args.curve.split(",")] if args.curve else None)
         return
     from vhgen.forest.from_stores import train_forest
     from vhgen.forest.train import TrainParams

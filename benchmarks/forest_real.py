@@ -183,13 +183,15 @@ def _write(res: dict, out: Path) -> None:
 
 
 def real_study(out: Path, *, quick: bool, backend: str, workers: int,
-               data: Path | None = None) -> dict:
+               data: Path | None = None, frames: int | None = None,
+               curve: list[int] | None = None) -> dict:
     """Steps 1-4 of the module docstring; returns and writes the results. ``data``: where
     the generated stores go (default OUT/real_data; kept and reused by a rerun)."""
     from vhgen.forest.train import TrainParams
 
     t0 = time.perf_counter()
-    plan = QUICK if quick else FULL
+    plan = dict(QUICK if quick else FULL)
+    plan.update({k: v for k, v in (("frames", frames), ("curve", curve)) if v})
     data = data if data is not None else out / "real_data"
     params = TrainParams(seed=1, **plan["params"])
     n = plan["frames"]
