@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/forest_curves.py [--quick] [--out out/forest_study]
         [--backend egl] [--workers N]
     .venv/bin/python benchmarks/forest_curves.py --real [--quick] [--out docs/forest_study]
+        [--data DIR] [--frames 560] [--curve 560,1120,2240,4480]
 
 The real study is described in :func:`real_study`; what follows is the synthetic one.
 

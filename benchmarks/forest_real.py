@@ -1,6 +1,8 @@
 """The proof on real frames: what each realism measure buys, measured on a real sensor.
 
-Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR]``. Steps:
+Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR] [--data DIR]
+[--frames N] [--curve N,N,...]`` (the results in ``docs/forest_study/real_*`` come from
+``--frames 560 --curve 560,1120,2240,4480``). Steps:
 
 1. Frames for each generator setting (:data:`SETTINGS`), from the recommended training
    configs (``configs/forest/people_room.yaml``: clothed people in cluttered rooms,
