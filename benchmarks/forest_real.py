@@ -25,6 +25,10 @@ Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR] [--data D
 Writes DIR/real_study.json, real_study.txt, real_ablation.png, real_curve.png and the
 check frames' sheets of the recommended forest (real_sheet.png, real_sheet_segment.png);
 the generated stores go to ``--data`` (default DIR/real_data) and are reused by a rerun.
+A store is reused by its setting's name, so after a change to the generator (a new
+clutter kind, a sensor preset) delete the stores it affects (or use a fresh ``--data``);
+a forest is reused only if it was trained on the very stores there now (its cache key
+holds their manifests' digests).
 """
 
 from __future__ import annotations
@@ -168,8 +172,10 @@ def _forest(stores: list[str], params: Any, n: int, cache: Path) -> Any:
     from vhgen.forest.from_stores import train_forest
     from vhgen.forest.trees import Forest
 
-    key = hashlib.sha1(json.dumps([stores, n, dataclasses.asdict(params)]).encode()
-                       ).hexdigest()[:12]
+    digests = [hashlib.sha1((Path(s) / "manifest.parquet").read_bytes()).hexdigest()
+               for s in stores]
+    key = hashlib.sha1(json.dumps([stores, digests, n, dataclasses.asdict(params)]
+                                  ).encode()).hexdigest()[:12]
     path = cache / f"forest_{n}_{key}.npz"
     if path.is_file():
         return Forest.load(path)

@@ -47,6 +47,8 @@ MODES: dict[str, tuple[tuple[str, float], ...]] = {
     "bag": (("wall", 0.4), ("floor", 0.6)),
     "objects": (("floor", 0.6), ("wall", 0.4)),
     "picture": (("wall", 1.0),),
+    "chair": (("floor", 0.6), ("wall", 0.2), ("corner", 0.2)),
+    "coat_stand": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
 }
 # A room rarely holds two staircases or three TVs: each item of a kind already drawn for
 # the frame multiplies that kind's weight by this (others by REPEAT_DEFAULT); a config
@@ -55,7 +57,7 @@ REPEAT = {"stairs": 0.05, "tv": 0.05, "door": 0.1, "desk": 0.2, "table": 0.3}
 REPEAT_DEFAULT = 0.5
 NO_RETURN_KINDS = ("window",)  # their class (the glass) gives no measurement
 PIERCES_CEILING = ("stairs",)  # may rise above the walls (to an upper floor)
-_CENTRED = ("plant", "lamp")  # built about the y axis: moved back onto z >= 0
+_CENTRED = ("plant", "lamp", "chair", "coat_stand")  # built about the y axis: moved back onto z >= 0
 
 
 @dataclass(frozen=True, eq=False)

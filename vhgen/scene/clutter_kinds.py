@@ -48,6 +48,13 @@ RANGES: dict[str, dict[str, tuple[float, float]]] = {
     "bag": {"w": (0.3, 0.6), "h": (0.25, 0.5), "d": (0.15, 0.3), "handles": (0, 1)},
     "objects": {"w": (0.4, 1.0), "d": (0.3, 0.7), "count": (3, 8.999)},
     "picture": {"w": (0.3, 1.2), "h": (0.3, 0.9), "y": (1.3, 1.75), "t": (0.02, 0.05)},
+    # free-standing seats: a swivel chair (high curved back, maybe arms and a headrest)
+    # or an upholstered armchair, as big as a seated person
+    "chair": {"style": (0, 1), "w": (0.46, 0.62), "seat": (0.42, 0.52), "back": (0.45, 0.85),
+              "curve": (0.0, 0.5), "recline": (0.0, 0.3), "arms": (0, 1)},
+    # a coat stand with coats, bags and hats hanging from its hooks: person-sized
+    "coat_stand": {"height": (1.6, 1.9), "coats": (0, 3.999), "hooks": (3, 6.999),
+                   "coat_len": (0.5, 1.1)},
 }
 
 BOARD = 0.02  # shelf boards, cabinet sides
@@ -205,6 +212,88 @@ def _office_chair(kit: Kit, g: np.random.Generator, cx: float, cz: float, yaw: f
     tips = np.column_stack([cx + 0.3 * np.cos(a), np.full(5, 0.05), cz + 0.3 * np.sin(a)])
     kit.tubes(np.tile([cx, 0.1, cz], (5, 1)), tips, 0.018, BODY, sections=4)
     kit.spheres(np.full((5, 3), 0.025), tips - np.array([0, 0.025, 0]), BODY)
+
+
+def chair(kit: Kit, p: dict, g: np.random.Generator) -> None:
+    """A chair standing free, its back to -z (to the wall, if it stands against one;
+    placement turns it): below 0.65 of ``style`` a swivel chair whose back, ``back`` tall,
+    wraps round the sitter by ``curve`` radians a side and leans back by ``recline``, with
+    arms if ``arms`` < 0.5; above, an upholstered armchair."""
+    w, seat, back = p["w"], p["seat"], p["back"]
+    arms = p["arms"] < 0.5
+    if p["style"] >= 0.65:  # an upholstered armchair: seat, back and arms as blocks
+        d, back_h, arm = w + 0.2, back * 0.8, 0.16
+        wide = w + 2 * arm
+        kit.box([wide, seat - 0.1, d], [0, 0.1 + (seat - 0.1) / 2, 0], BODY)
+        kit.boxes(np.tile([0.05, 0.1, 0.05], (4, 1)),
+                  [[sx * (wide / 2 - 0.05), 0.05, sz * (d / 2 - 0.05)] for sx in (-1, 1)
+                   for sz in (-1, 1)], BODY)
+        kit.box([w, 0.1, d - 0.2], [0, seat + 0.05, 0.1], BODY)  # the cushion
+        kit.box([wide, back_h + 0.1, 0.2], [0, seat + back_h / 2, 0.1 - d / 2], BODY)
+        ah = seat + g.uniform(0.12, 0.25) - 0.1
+        kit.boxes([[arm, ah, d - 0.2]] * 2,
+                  [[sx * (w / 2 + arm / 2), 0.1 + ah / 2, 0.1] for sx in (-1, 1)], BODY)
+        return
+    # the swivel chair: seat, a back of stacked rows (each a middle panel and two wings)
+    kit.box([w, 0.08, w * 0.95], [0, seat - 0.04, 0], BODY)
+    rows = 4
+    rh = back / rows
+    wing = w * 0.3
+    for k in range(rows):
+        z = -w * 0.42 - (k + 0.5) * rh * math.tan(p["recline"])
+        y = seat + 0.06 + (k + 0.5) * rh
+        mid = w - 2 * wing
+        kit.box([mid, rh + 0.01, 0.06], [0, y, z], BODY)
+        a = p["curve"]
+        for sx in (-1, 1):
+            cx = sx * (mid / 2 + math.cos(a) * wing / 2)
+            kit.box([wing, rh + 0.01, 0.06], [cx, y, z + math.sin(a) * wing / 2], BODY,
+                    yaw=float(-sx * a))
+    top = seat + 0.06 + back
+    if g.uniform() < 0.3:  # a headrest
+        hz = -w * 0.42 - back * math.tan(p["recline"]) - 0.02
+        kit.box([w * 0.5, 0.16, 0.08], [0, top + 0.1, hz], BODY)
+    if arms:
+        for sx in (-1, 1):
+            x = sx * (w / 2 + 0.03)
+            kit.box([0.06, 0.04, w * 0.5], [x, seat + 0.22, 0.0], BODY)
+            kit.tubes([[x, seat - 0.04, 0.05]], [[x, seat + 0.2, 0.05]], 0.02, BODY,
+                      sections=4)
+    kit.tubes([[0, 0.1, 0]], [[0, seat - 0.08, 0]], 0.025, BODY)
+    a = np.arange(5) * 2 * np.pi / 5 + g.uniform(0, 2 * np.pi)
+    tips = np.column_stack([0.3 * np.cos(a), np.full(5, 0.05), 0.3 * np.sin(a)])
+    kit.tubes(np.tile([0, 0.1, 0], (5, 1)), tips, 0.018, BODY, sections=4)
+    kit.spheres(np.full((5, 3), 0.025), tips - np.array([0, 0.025, 0]), BODY)
+
+
+def coat_stand(kit: Kit, p: dict, g: np.random.Generator) -> None:
+    """A pole on a round foot with hooks near its top, and up to three coats (a long
+    soft body, shoulders), bags or hats hanging from them."""
+    h = p["height"]
+    kit.cylinders([g.uniform(0.18, 0.25)], [0.03], [[0, 0, 0]], BODY, sections=16)
+    kit.tubes([[0, 0.03, 0]], [[0, h, 0]], 0.02, BODY)
+    n = int(p["hooks"])
+    az = np.arange(n) * 2 * np.pi / n + g.uniform(0, 2 * np.pi)
+    hook = np.column_stack([0.14 * np.cos(az), np.full(n, h - 0.1), 0.14 * np.sin(az)])
+    kit.tubes(np.tile([0, h - 0.18, 0], (n, 1)), hook, 0.008, BODY, sections=4)
+    for k in g.permutation(n)[:int(p["coats"])]:
+        out = np.array([np.cos(az[k]), 0.0, np.sin(az[k])])
+        what = g.uniform()
+        if what < 0.65:  # a coat: shoulders at the hook, a body hanging down, sleeves
+            ln = p["coat_len"] * g.uniform(0.85, 1.15)
+            sw, th = g.uniform(0.18, 0.24), g.uniform(0.06, 0.12)
+            c = hook[k] + out * (th + 0.03)
+            yaw = float(np.arctan2(out[0], out[2]))
+            kit.box([2 * sw, ln, 2 * th], [c[0], h - 0.12 - ln / 2, c[2]], BODY, yaw=yaw)
+            kit.spheres([[sw, 0.07, th]], [[c[0], h - 0.14, c[2]]], BODY)
+        elif what < 0.85:  # a bag on its strap
+            bh = g.uniform(0.25, 0.4)
+            c = hook[k] + out * 0.1
+            kit.tubes([hook[k]], [[c[0], h - 0.35, c[2]]], 0.008, BODY, sections=4)
+            kit.spheres([[0.16, bh / 2, 0.08]], [[c[0], h - 0.35 - bh / 2, c[2]]], BODY)
+        else:  # a hat on the hook
+            kit.cylinders([0.1], [0.1], [hook[k] + out * 0.05], BODY, sections=12,
+                          top_ratio=0.8)
 
 
 def desk(kit: Kit, p: dict, g: np.random.Generator) -> None:
@@ -507,4 +596,5 @@ def picture(kit: Kit, p: dict, g: np.random.Generator) -> None:
 BUILDERS = {"bookcase": bookcase, "shelf": shelf, "cabinet": cabinet, "desk": desk, "tv": tv,
             "table": table, "plant": plant, "stairs": stairs, "lamp": lamp,
             "radiator": radiator, "window": window, "curtain": curtain, "door": door,
-            "boxes": boxes, "bag": bag, "objects": objects, "picture": picture}
+            "boxes": boxes, "bag": bag, "objects": objects, "picture": picture,
+            "chair": chair, "coat_stand": coat_stand}
