@@ -2,7 +2,7 @@
 
 Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR] [--data DIR]
 [--frames N] [--curve N,N,...]`` (the results in ``docs/forest_study/real_*`` come from
-``--frames 560 --curve 560,1120,2240,4480``). Steps:
+``--frames 560 --curve 560,1120,2240``). Steps:
 
 1. Frames for each generator setting (:data:`SETTINGS`), from the recommended training
    configs (``configs/forest/people_room.yaml``: clothed people in cluttered rooms,
@@ -75,11 +75,11 @@ BEST = "all"
 QUICK = {"frames": 140, "frame_step": 80, "avatars": 1, "curve_step": 40, "curve_avatars": 2,
          "curve": [70, 140, 280], "test_step": 40, "test_frames": 48,
          "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
-                    "thresholds": 15, "min_samples": 8}}
+                    "thresholds": 15, "min_samples": 8, "background_share": 0.5}}
 FULL = {"frames": 1120, "frame_step": 40, "avatars": 4, "curve_step": 10, "curve_avatars": 4,
         "curve": [560, 1120, 2240, 4480, 8960], "test_step": 10, "test_frames": 240,
         "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
-                   "thresholds": 25, "min_samples": 16}}
+                   "thresholds": 25, "min_samples": 16, "background_share": 0.5}}
 
 
 def _merge(base: dict, patch: dict) -> dict:

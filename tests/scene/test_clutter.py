@@ -100,6 +100,42 @@ def test_surfaces_hold_objects_and_variants_are_cached():
     assert np.array_equal(build("plant", a.params).vertices, a.vertices)
 
 
+def test_free_chairs_and_coat_stands_are_person_sized_known_answers():
+    """A swivel chair's back stands behind the seat (its back to the wall, z = 0), wraps
+    round the sitter (the wings' outer edges nearer the seat than the middle) and leans
+    back with ``recline``; an armchair is wider than its seat; a coat stand is as tall
+    as asked, its coats hang within its reach."""
+    base = {"style": 0.1, "w": 0.5, "seat": 0.45, "back": 0.7, "curve": 0.4, "recline": 0.0,
+            "arms": 0.9, "fill": 0.0, "seed": 1}
+    upright = build("chair", base)
+    v = upright.vertices
+    back_top = 0.45 + 0.06 + 0.7
+    assert v[:, 1].max() == pytest.approx(back_top, abs=0.2)  # with or without a headrest
+    back = v[(v[:, 1] > 0.6) & (v[:, 1] < back_top - 0.05)]
+    middle = back[np.abs(back[:, 0]) < 0.11]
+    outer = back[np.abs(back[:, 0]) > 0.2]
+    assert outer[:, 2].max() > middle[:, 2].max() + 0.05  # the wings come forward
+    seat = v[np.abs(v[:, 1] - 0.41) < 0.05]
+    assert middle[:, 2].mean() < seat[:, 2].mean()  # the back is behind the seat
+    leaning = build("chair", {**base, "recline": 0.3}).vertices
+
+    def back_z(verts, y0, y1):
+        sel = verts[(verts[:, 1] > y0) & (verts[:, 1] < y1) & (np.abs(verts[:, 0]) < 0.11)]
+        return sel[:, 2].mean()
+
+    # built from z = 0 (its back), so a leaning back moves the seat out from the wall
+    assert (back_z(leaning, 0.6, 0.75) - back_z(leaning, 1.0, 1.15)) > 0.05
+    assert abs(back_z(v, 0.6, 0.75) - back_z(v, 1.0, 1.15)) < 1e-9
+    arm = build("chair", {**base, "style": 0.9}).vertices
+    assert np.ptp(arm[:, 0]) > 0.5 + 0.25 and 0.7 < arm[:, 1].max() < 1.3
+    for seed in range(8):
+        p = {"height": 1.75, "coats": 3.5, "hooks": 5.0, "coat_len": 1.0, "fill": 0.0,
+             "seed": seed}
+        stand = build("coat_stand", p).vertices
+        assert stand[:, 1].max() == pytest.approx(1.75, abs=0.06)
+        assert np.ptp(stand[:, [0, 2]], axis=0).max() < 1.2
+        assert stand[:, 1].min() >= -1e-9  # a 1.15 m coat from 1.63 m stays off the floor
+
 def test_walls_with_openings_cut_exactly_the_hole():
     corners = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0]])
     plain = room_walls(corners, 2.5)

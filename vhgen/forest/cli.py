@@ -53,7 +53,8 @@ def _params(args: argparse.Namespace) -> Any:
                        thresholds=args.thresholds, seed=args.seed,
                        min_samples=args.min_samples, min_gain=args.min_gain,
                        max_offset=args.max_offset, threshold_range=args.threshold_range,
-                       hist_budget_mb=args.hist_budget_mb)
+                       hist_budget_mb=args.hist_budget_mb,
+                       background_share=args.background_share)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -223,6 +224,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="maximum tree depth (default 20)")
     t.add_argument("--pixels-per-image", type=A.int_range(1), default=2000,
                    help="training pixels per image, balanced over parts (default 2000)")
+    t.add_argument("--background-share", type=A.float_range(0, 1, hi_open=True), default=0.0,
+                   help="share of each image's training pixels drawn from the background "
+                        "(default 0: the background is one class among the parts present)")
     t.add_argument("--features", type=A.int_range(1), default=2000,
                    help="candidate offset pairs per node (default 2000)")
     t.add_argument("--thresholds", type=A.int_range(1), default=50,

@@ -55,6 +55,9 @@ class TrainParams:
     max_offset: int = 130  # pixel-metres (Shotton's best probe range, 129 px m)
     threshold_range: int = 1000  # mm; thresholds uniform in [-range, range]
     hist_budget_mb: int = 256  # histogram memory per chunk of nodes and shard
+    # share of each image's samples drawn from the background (class 0); 0: background is
+    # one class among those present, like every part (Shotton's balance)
+    background_share: float = 0.0
 
     def check(self) -> None:
         """Raise ForestError naming the flag of the first bad value."""
@@ -70,6 +73,9 @@ class TrainParams:
                 raise ForestError(f"--{name.replace('_', '-')} {v}: must be in [{lo}, {hi}]")
         if self.min_gain < 0:
             raise ForestError(f"--min-gain {self.min_gain}: must be >= 0")
+        if not 0.0 <= self.background_share < 1.0:
+            raise ForestError(f"--background-share {self.background_share}: must be in "
+                              "[0, 1)")
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -194,12 +200,15 @@ def _route(depths, s_img, s_x, s_y, s_node, split_off, split_thr, child):
 
 
 def sample_pixels(labels: np.ndarray, valid: np.ndarray, n: int,
-                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+                  rng: np.random.Generator, background_share: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Up to ``n`` pixels of one image, balanced over the classes present.
 
     labels : (H, W) uint8 class per pixel; valid : (H, W) bool, pixels with a measurement.
     Each class present gets ``n // #classes`` pixels (all of them if it has fewer), drawn
-    without replacement. Returns flat pixel indices (int64) and their classes (uint8).
+    without replacement; with ``background_share`` > 0 and background and parts both
+    present, the background (class 0) gets ``round(n * background_share)`` and the parts
+    share the rest equally. Returns flat pixel indices (int64) and their classes (uint8).
     """
     lab = labels.ravel()
     ok = np.flatnonzero(valid.ravel())
@@ -208,9 +217,15 @@ def sample_pixels(labels: np.ndarray, valid: np.ndarray, n: int,
     cls = lab[ok]
     present = np.unique(cls)
     quota = max(1, n // len(present))
+    quotas = dict.fromkeys(present.tolist(), quota)
+    if background_share > 0 and len(present) > 1 and present[0] == 0:
+        quotas[0] = max(1, round(n * background_share))
+        for c in present[1:].tolist():
+            quotas[c] = max(1, (n - quotas[0]) // (len(present) - 1))
     picks = []
     for c in present:
         idx = ok[cls == c]
+        quota = quotas[int(c)]
         if len(idx) > quota:
             idx = np.sort(rng.choice(idx, size=quota, replace=False))
         picks.append(idx)
@@ -243,7 +258,7 @@ class ImageShard:
             rng = np.random.default_rng(np.random.SeedSequence(
                 [p.seed, _SAMPLE_STREAM, tree, int(self.ids[m])]))
             flat, lab = sample_pixels(self.labels[m], self.depth[m] != BACKGROUND_MM,
-                                      p.pixels_per_image, rng)
+                                      p.pixels_per_image, rng, p.background_share)
             imgs.append(np.full(len(flat), m, np.int32))
             ys.append((flat // w).astype(np.int32))
             xs.append((flat % w).astype(np.int32))

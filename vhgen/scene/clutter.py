@@ -3,7 +3,8 @@
 Shelves and bookcases full of books and things, plants (trunk, branches, leaves), stairs,
 TVs on stands, desks with a monitor and an office chair, floor lamps, radiators, windows
 (glass gives no return), curtains, doors open at an angle onto a corridor, boxes, bags,
-objects on the floor and on every surface, pictures and shelves on the walls. Each kind
+objects on the floor and on every surface, pictures and shelves on the walls, chairs
+standing free and coat stands hung with coats (person-sized, not people). Each kind
 is built from instanced unit primitives (:mod:`vhgen.scene.meshkit`) by a builder of
 :mod:`vhgen.scene.clutter_kinds`, from a parameter dict that rebuilds it exactly
 (:func:`build`); :mod:`vhgen.scene.clutter_place` puts the items against walls, in
