@@ -83,6 +83,23 @@ def test_sampling_is_balanced_over_classes():
     assert valid.ravel()[flat].all() and len(np.unique(flat)) == len(flat)
 
 
+def test_background_share_takes_its_share_and_the_parts_split_the_rest():
+    lab = np.zeros((60, 60), np.uint8)  # 2400 background pixels
+    lab[:10] = 1
+    lab[10:20] = 2
+    lab[20:] = 0
+    valid = np.ones_like(lab, bool)
+    _, cls = sample_pixels(lab, valid, 300, np.random.default_rng(0), background_share=0.5)
+    assert np.bincount(cls, minlength=3).tolist() == [150, 75, 75]
+    _, cls = sample_pixels(lab, valid, 300, np.random.default_rng(0))
+    assert np.bincount(cls, minlength=3).tolist() == [100, 100, 100]  # 0: the old balance
+    only_bg = np.zeros_like(lab)  # nothing but background: all n pixels, as before
+    _, cls = sample_pixels(only_bg, valid, 300, np.random.default_rng(0), 0.5)
+    assert len(cls) == 300 and not cls.any()
+    with pytest.raises(ForestError, match="--background-share"):
+        TrainParams(background_share=1.0).check()
+
+
 def test_bad_params_name_the_flag():
     with pytest.raises(ForestError, match="--depth"):
         TrainParams(depth=0).check()
