@@ -121,4 +121,13 @@ def test_forest_eval_on_shared_real_frames(tmp_path, capsys, boxes_store):
     assert main(["forest", "label", str(forest), str(REAL / "person.pcd"), "-o", str(label),
                  "--segment"]) == 0
     assert np.asarray(Image.open(label)).shape == (480, 640)
+    strict = tmp_path / "strict.png"  # a stricter vote can only drop whole clusters
+    assert main(["forest", "label", str(forest), str(REAL / "person.pcd"), "-o", str(strict),
+                 "--segment", "--min-body-fraction", "1.0"]) == 0
+    loose_body = np.asarray(Image.open(label)) > 0
+    strict_body = np.asarray(Image.open(strict)) > 0
+    assert not (strict_body & ~loose_body).any()
+    one_line_error(capsys, "forest", "label", str(forest), str(REAL / "person.pcd"), "-o",
+                   str(strict), "--segment", "--min-body-fraction", "2",
+                   match="--min-body-fraction")
     one_line_error(capsys, "forest", "eval", str(forest), match="give test stores")

@@ -96,8 +96,8 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
     for f in frames:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
-    res = evaluate_real(labeller(forest, args.segment, args.fx), frames, out_dir=args.out,
-                        colors=forest.meta.get("label_colors"),
+    label = labeller(forest, args.segment, args.fx, args.min_body_fraction)
+    res = evaluate_real(label, frames, out_dir=args.out, colors=forest.meta.get("label_colors"),
                         num_classes=forest.num_classes)
     res["segment"] = bool(args.segment)
     print(table(res))
@@ -156,15 +156,18 @@ def frame_intrinsics(frame: Any, forest: Any, fx: float | None = None) -> Any:
     return Intrinsics(w, h, f, f, (w - 1) / 2, (h - 1) / 2)
 
 
-def labeller(forest: Any, segment: bool, fx: float | None = None) -> Any:
+def labeller(forest: Any, segment: bool, fx: float | None = None,
+              min_body_fraction: float | None = None) -> Any:
     """frame -> (H, W) uint8 labels: the forest, then (``segment``) the segmentation
-    stage of :mod:`vhgen.forest.segment`."""
+    stage of :mod:`vhgen.forest.segment` (``min_body_fraction``: its default if None)."""
     import numpy as np
 
     from vhgen.forest.segment import Segmenter
     from vhgen.forest.trees import Predictor
 
-    predictor, seg = Predictor(forest), Segmenter()
+    predictor = Predictor(forest)
+    seg = (Segmenter() if min_body_fraction is None
+           else Segmenter(min_body_fraction=min_body_fraction))
 
     def label(frame: Any) -> Any:
         labels = predictor.predict(np.asarray(frame.depth_mm))
@@ -185,7 +188,7 @@ def _cmd_label(args: argparse.Namespace) -> int:
     fx = args.fx if args.fx is not None else (
         frame.intrinsics.fx if frame.intrinsics is not None else None)
     check_focal(forest, fx, args.depth)
-    labels = labeller(forest, args.segment, fx)(frame)
+    labels = labeller(forest, args.segment, fx, args.min_body_fraction)(frame)
     img = Image.fromarray(labels, mode="P")
     pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
     img.putpalette(pal.ravel().tolist())
@@ -207,6 +210,13 @@ def _cmd_export(args: argparse.Namespace) -> int:
     print(f"wrote {len(paths)} PCL tree files to {args.output} (trained at fx={fx} px; PCL's "
           "people app reads OpenNI depth registered to RGB, f=525 px)")
     return 0
+
+
+def _body_fraction_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--min-body-fraction", type=A.float_range(0, 1),
+                   help="--segment: a cluster is a person when the forest calls at least "
+                        "this share of it a body part (default 0.5, chosen for forests "
+                        "trained with --background-share 0.5; 0.8 for forests without)")
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -267,6 +277,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     e.add_argument("--segment", action="store_true",
                    help="real frames: the segmentation stage after the forest (as forest "
                         "label --segment)")
+    _body_fraction_arg(e)
     e.add_argument("--masks", type=A.existing_path(),
                    help="folder of person masks, <frame name>.png (8-bit, 0 = not a person); "
                         "default: <frame name>.mask.png beside each frame")
@@ -293,6 +304,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("--segment", action="store_true",
                     help="remove floor and walls, cluster the rest, and keep body parts "
                          "only in clusters the forest calls a person (see README)")
+    _body_fraction_arg(lb)
     lb.set_defaults(func=_cmd_label)
 
     x = fsub.add_parser("export", help="write the forest in another format")
