@@ -2,7 +2,7 @@
 
 Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR] [--data DIR]
 [--frames N] [--curve N,N,...]`` (the results in ``docs/forest_study/real_*`` come from
-``--frames 560 --curve 560,1120,2240``). Steps:
+``--frames 560 --curve 280,560,1120``). Steps:
 
 1. Frames for each generator setting (:data:`SETTINGS`), from the recommended training
    configs (``configs/forest/people_room.yaml``: clothed people in cluttered rooms,
