@@ -58,7 +58,8 @@ REPEAT = {"stairs": 0.05, "tv": 0.05, "door": 0.1, "desk": 0.2, "table": 0.3}
 REPEAT_DEFAULT = 0.5
 NO_RETURN_KINDS = ("window",)  # their class (the glass) gives no measurement
 PIERCES_CEILING = ("stairs",)  # may rise above the walls (to an upper floor)
-_CENTRED = ("plant", "lamp", "chair", "coat_stand")  # built about the y axis: moved back onto z >= 0
+# built about the y axis: moved back onto z >= 0
+_CENTRED = ("plant", "lamp", "chair", "coat_stand")
 
 
 @dataclass(frozen=True, eq=False)
