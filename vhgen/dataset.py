@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.errors import StoreError
+from vhgen.store.manifest import read_manifest_table
 from vhgen.store.zarr_store import MANIFEST_FILE, open_store, read_frames
 
 # contract arrays first, in this order; other (N, ...) arrays of the group follow by name
@@ -111,8 +112,6 @@ class FrameDataset:
     def __init__(self, store: str | Path, *, arrays: Sequence[str] | None = None,
                  columns: Sequence[str] | None = None, cache: str = "shard",
                  frames: np.ndarray | None = None):
-        import pyarrow.parquet as pq
-
         if cache not in ("shard", "frame"):
             raise ValueError(f"cache must be 'shard' or 'frame', got {cache!r}")
         self.store = str(Path(store).expanduser())
@@ -125,7 +124,7 @@ class FrameDataset:
                              "'vhgen generate ... --resume')")
         cols = None if columns is None else list(dict.fromkeys(["frame", *columns]))
         try:
-            table = pq.read_table(man_path, columns=cols).sort_by("frame")
+            table = read_manifest_table(man_path, cols).sort_by("frame")
         except (KeyError, ValueError) as e:
             raise StoreError(f"{man_path}: {e}") from None
         if not (path / "depth" / "zarr.json").is_file():

@@ -76,17 +76,20 @@ def _scene_tiles(root, frames: list[int]) -> bool:
 
 def _people_joints(store: Path, frames: list[int]) -> dict[int, list[tuple]]:
     """frame -> [(instance, (J, 2) float pixels, (J,) bool visible)] from the manifest."""
-    import pyarrow.parquet as pq
+    import pyarrow as pa
+    import pyarrow.compute as pc
 
     from vhgen.errors import StoreError
+    from vhgen.store.manifest import read_manifest_table
     from vhgen.store.zarr_store import MANIFEST_FILE
 
     path = store / MANIFEST_FILE
     if not path.is_file():
         raise StoreError(f"{path}: no manifest (an unfinished job? run it again with "
                          f"--resume)")
-    table = pq.read_table(path, columns=["frame", "people"],
-                          filters=[("frame", "in", [int(f) for f in frames])])
+    table = read_manifest_table(path, ["frame", "people"])
+    wanted = pa.array([int(f) for f in frames], table.schema.field("frame").type)
+    table = table.filter(pc.is_in(table.column("frame"), value_set=wanted))
     out: dict[int, list[tuple]] = {}
     for f, people in zip(table.column("frame").to_pylist(), table.column("people").to_pylist(),
                          strict=True):

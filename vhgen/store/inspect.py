@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.scene.geometry import PERSON, SCENE_CLASSES
+from vhgen.store.manifest import manifest_form, read_manifest_table
 from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS, open_store
 
 # array name -> dtype the contract requires; depth and labels are mandatory
@@ -60,6 +61,7 @@ class InspectReport:
     histogram: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     valid: dict[str, float] = field(default_factory=dict)
     frames_checked: int = 0
+    manifest_form: int = 0  # 1 or 2 (see vhgen.store.manifest), 0 if there is no manifest
 
     @property
     def ok(self) -> bool:
@@ -75,7 +77,7 @@ class InspectReport:
             "histogram": [{"label": k, "name": parts[k] if k < len(parts) else f"?{k}",
                            "pixels": int(c), "fraction": c / total if total else 0.0}
                           for k, c in enumerate(self.histogram.tolist())],
-            "valid": self.valid,
+            "valid": self.valid, "manifest_form": self.manifest_form,
         }
 
     def format(self) -> str:
@@ -83,7 +85,9 @@ class InspectReport:
         d = self.to_dict()
         lines = [f"{self.store}: {self.num_frames} frames in shards of {self.frames_per_shard}, "
                  f"arrays " + ", ".join(f"{k} {v}" for k, v in self.arrays.items()),
-                 f"{self.frames_checked} frames read and checked against the manifest", "",
+                 f"{self.frames_checked} frames read and checked against the manifest",
+                 f"manifest form {self.manifest_form}: {_FORMS.get(self.manifest_form, '')}",
+                 "",
                  f"{'label':>5}  {'part':<20} {'pixels':>14} {'% of body':>9}"]
         body = int(self.histogram[1:].sum()) if len(self.histogram) else 0
         for h in d["histogram"]:
@@ -104,6 +108,12 @@ class InspectReport:
         else:
             lines.append("OK: no defects")
         return "\n".join(lines)
+
+
+_FORMS = {0: "no readable manifest",
+          1: "the old form (people.footprint a fixed-size list; where it is null, only "
+             "pyarrow >= 26 or vhgen's own reader opens it)",
+          2: "portable (no null inside a fixed-size list; any Parquet reader opens it)"}
 
 
 def _shard_file(store: Path, name: str, shard: int) -> Path:
@@ -230,7 +240,8 @@ def inspect_store(path: str | Path) -> InspectReport:
                            "'vhgen generate ... --resume')")
     else:
         try:
-            man = pq.read_table(man_path)
+            rep.manifest_form = manifest_form(pq.read_schema(man_path))
+            man = read_manifest_table(man_path)
         except Exception as e:  # pyarrow raises several types for a damaged file
             rep.defects.append(f"{MANIFEST_FILE}: unreadable ({type(e).__name__}: {e})")
         if man is not None:

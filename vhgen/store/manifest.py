@@ -1,4 +1,22 @@
-"""The per-frame manifest: one Parquet row per frame, written as one part per shard."""
+"""The per-frame manifest: one Parquet row per frame, written as one part per shard.
+
+Two forms exist (:func:`manifest_form`; ``vhgen inspect`` names a store's):
+
+* **form 2** (written since vhgen 0.1.0 of 2026-11): no null inside a fixed-size list.
+  The one column that can be absent, ``people.footprint`` (null for a person-only frame),
+  is a nullable *variable-size* list of 3 floats. Nullable lists are plain Parquet that
+  every reader opens (pyarrow from 15 on, pandas, DuckDB, Polars, Spark); a null stays a
+  null (no NaN sentinel to test for, no extra validity column), and the values a reader
+  gets are the same as in form 1, so the frames' fingerprints did not change.
+* **form 1** (earlier stores): ``people.footprint`` a fixed-size list of 3. pyarrow
+  before 26 cannot read a null inside a fixed-size list ("Expected all lists to be of
+  size=3 but index 1 had size=0"), so the manifest of a person-only store opened only
+  with pyarrow >= 26. :func:`read_manifest_table` reads it with any pyarrow: it drops the
+  unreadable column and restores it as nulls (in form 1 the footprint was null exactly
+  when the job's scene had no floor, so for every frame of the store).
+
+Every reader of vhgen goes through :func:`read_manifest_table`, which returns form 2.
+"""
 
 from __future__ import annotations
 
@@ -23,9 +41,92 @@ def _arrow(kind: str, num_joints: int):
     if kind == "people":
         return pa.list_(pa.struct([(n, _arrow(k, num_joints))
                                    for n, k in columns(PersonRecord)]))
+    if kind.endswith("[]"):  # a nullable variable-size list (form 2's footprint)
+        return pa.list_(scalar[kind[:-2]])
     base, _, n = kind.partition("x")
     size = {"J3": 3 * num_joints, "J2": 2 * num_joints, "J": num_joints}.get(n) or int(n)
     return pa.list_(scalar[base], size)
+
+
+MANIFEST_FORM = 2  # the form written now (see the module docstring)
+
+
+def manifest_form(schema) -> int:
+    """1 or 2: the form of a manifest with Arrow ``schema`` (the footprint's list type)."""
+    import pyarrow as pa
+
+    if "people" not in schema.names:
+        return MANIFEST_FORM
+    person = schema.field("people").type.value_type
+    i = person.get_field_index("footprint")
+    if i >= 0 and pa.types.is_fixed_size_list(person.field(i).type):
+        return 1
+    return MANIFEST_FORM
+
+
+def _footprint_type():
+    import pyarrow as pa
+
+    # "element": the list item's name as Parquet's compliant nested types read it back
+    return pa.list_(pa.field("element", pa.float64()))
+
+
+def _footprint_as_list(people):
+    """``people`` (a list<struct> column) with ``footprint`` made a variable-size list
+    (form 2), added as nulls where the struct has no footprint (form 1 read without it)."""
+    import pyarrow as pa
+
+    chunks = []
+    for chunk in people.chunks if isinstance(people, pa.ChunkedArray) else [people]:
+        inner = chunk.values  # the structs of every person, in order
+        fields = [inner.type.field(k) for k in range(inner.type.num_fields)]
+        arrays = [inner.field(k) for k in range(inner.type.num_fields)]
+        names = [f.name for f in fields]
+        if "footprint" in names:
+            k = names.index("footprint")
+            fp = arrays[k]
+            if pa.types.is_fixed_size_list(fp.type):
+                size = fp.type.list_size  # the values of null entries are kept as padding
+                fp = pa.ListArray.from_arrays(
+                    pa.array(np.arange(len(fp) + 1, dtype=np.int32) * size),
+                    fp.values.slice(fp.offset * size, len(fp) * size),
+                    type=_footprint_type(), mask=fp.is_null())
+            arrays[k] = fp
+        else:
+            names.append("footprint")
+            arrays.append(pa.nulls(len(inner), _footprint_type()))
+        structs = pa.StructArray.from_arrays(arrays, names=names, mask=inner.is_null())
+        kind = pa.list_(pa.field(chunk.type.value_field.name, structs.type))
+        chunks.append(pa.ListArray.from_arrays(chunk.offsets, structs, type=kind,
+                                               mask=chunk.is_null()))
+    return pa.chunked_array(chunks) if chunks else people
+
+
+def read_manifest_table(path: str | Path, columns: list[str] | None = None):
+    """The manifest at ``path`` (a ``manifest.parquet`` or a part) as an Arrow table in
+    form 2, whatever form it was written in and whichever pyarrow reads it."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path, columns=columns)
+    except pa.ArrowInvalid as e:
+        if "Expected all lists to be of size" not in str(e):
+            raise
+        # form 1 with null footprints, read by pyarrow < 26: every leaf but the footprint
+        pf = pq.ParquetFile(path)
+        leaves = [pf.schema.column(i).path for i in range(pf.metadata.num_columns)]
+        keep = [p for p in leaves if not p.startswith("people.list.element.footprint")
+                and (columns is None or p.split(".")[0] in columns)]
+        table = pf.read(columns=keep)
+    if "people" in table.column_names:
+        people = table.column("people")
+        person = people.type.value_type
+        i = person.get_field_index("footprint")
+        if i < 0 or pa.types.is_fixed_size_list(person.field(i).type):
+            table = table.set_column(table.column_names.index("people"), "people",
+                                     _footprint_as_list(people))
+    return table
 
 
 def manifest_schema(num_joints: int):
@@ -65,11 +166,10 @@ class ManifestMerger:
         """Read shard ``shard``'s part (again, if it was redone). A part that cannot be
         read now is read (and its error reported) by :meth:`finish`."""
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
         path = self.store / MANIFEST_PARTS / f"part-{shard:06d}.parquet"
         try:
-            self.tables[shard] = pq.read_table(path)
+            self.tables[shard] = read_manifest_table(path)
         except (OSError, pa.ArrowInvalid):  # unreadable or truncated: finish() says so
             self.tables.pop(shard, None)
 
@@ -79,10 +179,19 @@ class ManifestMerger:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
+        bad = []
         for p in sorted((self.store / MANIFEST_PARTS).glob("part-*.parquet")):
             shard = int(p.stem.split("-")[1])
             if shard not in self.tables:
-                self.tables[shard] = pq.read_table(p)
+                try:
+                    self.tables[shard] = read_manifest_table(p)
+                except (OSError, pa.ArrowException) as e:
+                    bad.append(f"{p.name} ({type(e).__name__}: {_first_line(e)})")
+        if bad:
+            raise StoreError(f"{self.store}: cannot merge the manifest: {len(bad)} part(s) "
+                             f"unreadable: {'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''}"
+                             "; every shard and part is kept: fix the cause, then rerun with "
+                             "--resume (a part still unreadable then is rendered again)")
         if not self.tables:
             raise StoreError(f"{self.store}: no manifest parts")
         table = pa.concat_tables([self.tables[k] for k in sorted(self.tables)]).sort_by(
@@ -100,15 +209,34 @@ class ManifestMerger:
         return out
 
 
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip().splitlines()
+    return text[0][:200] if text else ""
+
+
+def unreadable_parts(store: str | Path) -> list[int]:
+    """Shards whose manifest part exists but cannot be read (damaged or truncated)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    bad = []
+    for p in sorted((Path(store) / MANIFEST_PARTS).glob("part-*.parquet")):
+        try:
+            pq.read_metadata(p)
+            read_manifest_table(p, columns=["frame"])
+        except (OSError, pa.ArrowException):
+            bad.append(int(p.stem.split("-")[1]))
+    return bad
+
+
 def merge_parts(store: str | Path, num_frames: int) -> Path:
     """Concatenate the parts into ``manifest.parquet``; check every frame appears once."""
     return ManifestMerger(store).finish(num_frames)
 
 
-def read_manifest(store: str | Path):
-    import pyarrow.parquet as pq
-
+def read_manifest(store: str | Path, columns: list[str] | None = None):
+    """A store's ``manifest.parquet`` (form 2, see :func:`read_manifest_table`)."""
     path = Path(store) / MANIFEST_FILE
     if not path.is_file():
         raise StoreError(f"{store}: no {MANIFEST_FILE} (job not finished?)")
-    return pq.read_table(path)
+    return read_manifest_table(path, columns)

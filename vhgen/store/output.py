@@ -16,7 +16,8 @@ from typing import Any
 from vhgen.body.labels import LabelScheme
 from vhgen.errors import StoreError
 from vhgen.job_config import JobConfig
-from vhgen.store.zarr_store import clean_partials, create_store, read_attrs
+from vhgen.store.manifest import unreadable_parts
+from vhgen.store.zarr_store import MANIFEST_PARTS, clean_partials, create_store, read_attrs
 from vhgen.version import __version__
 
 log = logging.getLogger(__name__)
@@ -111,6 +112,10 @@ def open_output(out: Path, cfg: JobConfig, attrs: dict[str, Any], num_frames: in
             n_clean = clean_partials(out)
             if n_clean:
                 log.warning("removed %d partial files left by a killed writer", n_clean)
+            for shard in unreadable_parts(out):  # damaged: its shard is rendered again
+                part = out / MANIFEST_PARTS / f"part-{shard:06d}.parquet"
+                log.warning("%s: unreadable; shard %d is rendered again", part, shard)
+                part.unlink()
         else:
             create_store(out, num_frames=num_frames, height=intr.height, width=intr.width,
                          frames_per_shard=cfg.frames_per_shard,

@@ -31,11 +31,12 @@ class PersonRecord:
     joints_visible: list[bool] = _col("boolxJ", "in the image and not occluded (see "
                                       "vhgen.scene.truth.joint_visibility)")
     visible_fraction: float = _col("float64", "visible joints / joints")
-    footprint: list[float] | None = _col("float64x3", "(x, z, radius) metres: the circle "
+    footprint: list[float] | None = _col("float64[]", "(x, z, radius) metres: the circle "
                                          "on the floor that held the posed body when it "
                                          "was placed; placements keep these apart from "
                                          "each other, the props' and the camera's (null "
-                                         "for a person-only frame)")
+                                         "for a person-only frame; a variable-size list "
+                                         "of 3, see manifest.MANIFEST_FORM)")
 
 
 @dataclass(frozen=True)
