@@ -10,8 +10,9 @@ millimetres. Forests:
   thresholds, 2^20 leaves per tree): the worst case of Shotton's 3 x 20 setting, and the
   shape of PCL's shipped trees (complete, padded);
 * ``--forest FILE``: any trained forest, with its mean path length on this frame. The
-  README's numbers use a 3 x depth-20 forest trained on 600 generated frames (Shotton's
-  depth and tree count, the forest study's sampling; about 2 minutes on 2 cores)::
+  numbers in docs/performance.md use a 3 x depth-20 forest trained on 600 generated
+  frames (Shotton's depth and tree count, the forest study's sampling; about 2 minutes on
+  2 cores)::
 
       vhgen generate configs/forest/train.yaml --max-frames 600 --out out/bench_train.zarr
       vhgen forest train out/bench_train.zarr --out out/bench_forest.npz \

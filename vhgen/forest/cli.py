@@ -303,7 +303,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                          "the training one (default for a PCD: the recovered one)")
     lb.add_argument("--segment", action="store_true",
                     help="remove floor and walls, cluster the rest, and keep body parts "
-                         "only in clusters the forest calls a person (see README)")
+                         "only in clusters the forest calls a person (see docs/forest.md)")
     _body_fraction_arg(lb)
     lb.set_defaults(func=_cmd_label)
 

@@ -22,7 +22,7 @@ identical to the slow reference; only the bookkeeping is fast:
   8 classes with -1 so that the sum and maximum vectorise; neighbouring pixels often end
   in the same leaves, so a pixel with the same leaves as the previous one reuses its label.
 
-Measured with ``NUMBA_NUM_THREADS=1 python benchmarks/bench_forest.py`` (see README).
+Measured with ``NUMBA_NUM_THREADS=1 python benchmarks/bench_forest.py`` (see docs/performance.md).
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ class Segmenter:
     max_planes: int = 4
     min_plane_fraction: float = 0.08
     # at 1 m, grows as z^2: about 3 sigma of the axial noise plus a quantisation step of the
-    # real sensor (1.4 and 2.9 mm/m^2, README "Real frames and realism")
+    # real sensor (1.4 and 2.9 mm/m^2, docs/realism.md "Real frames and realism")
     plane_tol_m: float = 0.007
     plane_tol_max_m: float = 0.05
     ransac_iterations: int = 200

@@ -4,7 +4,7 @@ Every statistic takes a depth image ``depth_mm`` (H, W) uint16 millimetres, 0 = 
 measurement, and where geometry matters the focal length ``fx`` (px); it is computed the
 same way on real frames and on vhgen frames. :func:`frame_stats` gathers all of them into
 a :class:`FrameStats`; each field's docstring below is the statistic's definition (the
-README section "Real frames and realism" repeats them).
+section "Real frames and realism" of docs/realism.md repeats them).
 
 The nominal ``f b`` used only to *select* discontinuities is ``fx * NOMINAL_BASELINE_M``
 (the Kinect's 7.5 cm): a jump is a discontinuity when it is at least ``MIN_JUMP_PX``

@@ -42,7 +42,7 @@ REFINED = 8  # the best distinct hypotheses refined (Tukey IRLS), compared by th
 SCORE_POINTS = 4000  # hypotheses are ranked on this many of the points
 # residual scale of a floor point, sigma(z) = SIGMA_M + SIGMA_Z2 z^2 (metres): the depth
 # noise grows with z^2 (1.44 mm/m^2 axial noise and 2.9 mm/m^2 quantisation steps on the
-# shared OpenNI frames, README "Real frames and realism"); on capture0001-0003 the floor
+# shared OpenNI frames, docs/realism.md "Real frames and realism"); on capture0001-0003 the floor
 # points' residuals have a standard deviation of 0.8 sigma
 SIGMA_M = 0.006
 SIGMA_Z2 = 0.0015
