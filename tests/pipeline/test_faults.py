@@ -156,3 +156,58 @@ def test_worker_setup_failure_is_one_line(tmp_path, capsys, executor):
                    max_frames=4, executor=executor)
     msg = str(ei.value)
     assert "\n" not in msg and "cannot create an egl OpenGL context" in msg
+
+
+def test_merge_failure_keeps_everything_and_resumes(tmp_path, capsys, monkeypatch):
+    """A manifest part the driver cannot read at the end of the job (a reader of another
+    version, a damaged file): one line naming the part, every shard and part kept, and
+    --resume merges once the cause is gone, rendering nothing again."""
+    import pyarrow as pa
+
+    import vhgen.store.manifest as manifest
+
+    real = manifest.read_manifest_table
+
+    def failing(path, columns=None):
+        if Path(path).name == "part-000001.parquet":
+            raise pa.ArrowInvalid("Expected all lists to be of size=3 but index 1 had size=0")
+        return real(path, columns)
+
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(SCENE.format(seed=5))
+    out = tmp_path / "m.zarr"
+    argv = ["-q", "generate", str(scene), "--out", str(out), "--max-frames", "12",
+            "--executor", "local"]
+    monkeypatch.setattr(manifest, "read_manifest_table", failing)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "part-000001.parquet" in err and "size=3" in err and "--resume" in err
+    assert _parts(out) == {f"part-{k:06d}.parquet" for k in range(3)}
+    assert not (out / "manifest.parquet").exists()
+    before = {k: _shard_bytes(out, k) for k in range(3)}
+    monkeypatch.setattr(manifest, "read_manifest_table", real)
+    summary = run_job(JobConfig.load(scene), out, max_frames=12, resume=True,
+                      executor="local")
+    assert summary.written == 0  # nothing rendered again: only the merge was missing
+    assert {k: _shard_bytes(out, k) for k in range(3)} == before
+    assert real(out / "manifest.parquet").column("frame").to_pylist() == list(range(12))
+
+
+def test_damaged_part_is_rendered_again_on_resume(tmp_path):
+    """A part damaged on disk (truncated) is still unreadable when resuming: its shard,
+    and only it, is rendered again, to the same bytes."""
+    import pyarrow.parquet as pq
+
+    cfg = _cfg(tmp_path)
+    out = tmp_path / "d.zarr"
+    run_job(cfg, out, max_frames=12, executor="local")
+    rows = pq.read_table(out / "manifest.parquet").to_pylist()
+    before = {k: _shard_bytes(out, k) for k in range(3)}
+    part = out / "manifest" / "part-000002.parquet"
+    part.write_bytes(part.read_bytes()[:100])
+    (out / "manifest.parquet").unlink()
+    summary = run_job(cfg, out, max_frames=12, resume=True, executor="local")
+    assert summary.written == 1
+    assert {k: _shard_bytes(out, k) for k in range(3)} == before
+    assert pq.read_table(out / "manifest.parquet").to_pylist() == rows

@@ -82,8 +82,14 @@ def _writer(array: Any) -> Any:
     """The array with every chunk written, even one equal to the fill value: zarr's check
     for such chunks (to omit them) compared each 640x480 frame to a fresh fill-value array,
     ~40% of a shard's write time; a frame that is all fill value is rare and reads back the
-    same either way."""
-    return array.with_config({"write_empty_chunks": True})
+    same either way. (zarr < 3.1.6 has no ``with_config``: there an array opened while
+    the global config says so carries the setting.)"""
+    if hasattr(array, "with_config"):
+        return array.with_config({"write_empty_chunks": True})
+    import zarr
+
+    with zarr.config.set({"array.write_empty_chunks": True}):
+        return zarr.open_array(array.store_path, mode="r+", zarr_format=3)
 
 
 def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.ndarray,
