@@ -1,6 +1,7 @@
-"""The README's Python examples run as written, in the environment the README's first
-command creates (vhgen and its dependencies, no extras), on a store made as the README's
-first command makes it (``out/cluttered_room.zarr``, here limited to 8 frames)."""
+"""The README's Python examples run as written, on a store made as the README's first
+command makes it (``out/cluttered_room.zarr``, here limited to 8 frames): the ```python
+blocks in the environment the README's first command creates (vhgen and its dependencies,
+no extras), the ```py blocks with the readers the dev extra adds (pandas, DuckDB)."""
 
 from __future__ import annotations
 
@@ -17,12 +18,12 @@ pytestmark = pytest.mark.slow
 
 
 def python_blocks(text: str) -> list[str]:
-    """The fenced ```python blocks of a Markdown text, in order."""
-    return re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
+    """The fenced ```python (and ```py) blocks of a Markdown text, in order."""
+    return re.findall(r"^```py(?:thon)?\n(.*?)^```", text, flags=re.S | re.M)
 
 
 def test_blocks_found():
-    blocks = python_blocks("x\n```python\na = 1\n```\n```bash\nls\n```\n```python\nb\n```\n")
+    blocks = python_blocks("x\n```python\na = 1\n```\n```bash\nls\n```\n```py\nb\n```\n")
     assert blocks == ["a = 1\n", "b\n"]
 
 
