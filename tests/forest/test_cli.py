@@ -68,6 +68,23 @@ def test_train_eval_label_export(tmp_path, capsys, boxes_store):
                        str(tmp_path / "lab3.png"))
     assert code == 0 and "fx=571 px differs" in err
 
+    # --instances: the people of the segmentation stage as an 8-bit image
+    code, _, err = run(capsys, "forest", "label", str(forest), str(pcd), "-o",
+                       str(tmp_path / "lab4.png"), "--instances", str(tmp_path / "inst.png"))
+    assert code == 2 and "--instances" in err and "--segment" in err
+    code, out, err = run(capsys, "forest", "label", str(forest), str(pcd), "-o",
+                         str(tmp_path / "lab4.png"), "--segment", "--instances",
+                         str(tmp_path / "inst.png"))
+    assert code == 0 and "people (pixel value = person" in out
+    from vhgen.forest.segment import Segmenter
+
+    inst = np.array(Image.open(tmp_path / "inst.png"))
+    seg_labels = np.array(Image.open(tmp_path / "lab4.png"))
+    assert inst.dtype == np.uint8 and inst.shape == d[0].shape
+    np.testing.assert_array_equal(inst, Segmenter().instances(
+        d[0], Intrinsics(w, h, 525.0, 525.0, 39.5, 29.5), seg_labels))
+    assert ((inst > 0) == (seg_labels > 0)).all()
+
     code, out, _ = run(capsys, "forest", "export", str(forest), "--format", "pcl", "-o",
                        str(tmp_path / "pcl"))
     assert code == 0 and (tmp_path / "pcl" / "tree_1.txt").is_file()

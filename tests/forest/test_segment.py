@@ -83,3 +83,68 @@ def test_real_person_frame(noise):
     out = Segmenter().apply(d, f.intrinsics, labels)
     called = (out > 0) & (d > 0)
     assert (called == (mask & (d > 0))).all()
+
+
+def _group(n: int, gap: float = 0.0, arm: bool = False):
+    """A camera 1.3 m above a floor, level, a wall 5 m away; ``n`` people side by side
+    3 m away, ``gap`` m apart (0: shoulders touching), coats' fronts on one plane: torso
+    0.5 m wide from 0.8 to 1.45 m, legs 8 cm further back, a head 0.22 m wide up to 1.72 m.
+    ``arm``: the first person holds an arm out sideways at shoulder height. Returns depth
+    mm and the (H, W) int person index (0 = none, k = k-th from the left)."""
+    intr = Intrinsics(320, 240, 262.5, 262.5, 159.5, 119.5)
+    rays = pixel_rays(intr)
+    h, w = intr.height, intr.width
+    y = rays[..., 1]
+    depth = np.minimum(np.full((h, w), 5.0), np.where(y > 1e-9, 1.3 / np.maximum(y, 1e-9),
+                                                      np.inf))
+    who = np.zeros((h, w), int)
+    x0 = -(n * 0.5 + (n - 1) * gap) / 2
+
+    def slab(xa, xb, lo, hi, z, k):
+        x, yy = rays[..., 0] * z, 1.3 - rays[..., 1] * z  # height above the floor
+        hit = (x >= xa) & (x <= xb) & (yy >= lo) & (yy <= hi) & (z < depth)
+        depth[hit] = z
+        who[hit] = k
+
+    for k in range(n):
+        left = x0 + k * (0.5 + gap)
+        slab(left + 0.05, left + 0.45, 0.0, 0.8, 3.08, k + 1)  # legs
+        slab(left, left + 0.5, 0.8, 1.45, 3.0, k + 1)  # the coat's front
+        slab(left + 0.14, left + 0.36, 1.45, 1.72, 2.97, k + 1)  # head
+    if arm:
+        slab(x0 - 0.6, x0, 1.3, 1.42, 3.0, 1)
+    return intr, np.round(depth * 1000).astype(np.uint16), who
+
+
+@pytest.mark.parametrize("n,gap", [(5, 0.0), (3, 0.0), (2, 0.15), (1, 0.0)])
+def test_people_side_by_side_are_found_one_by_one(n, gap):
+    """Touching people at 3 m with their fronts on one plane: each is one instance, none
+    lost to the plane (a large one, but standing in front of the room) or to the cluster's
+    width."""
+    intr, depth, who = _group(n, gap)
+    labels = (who > 0).astype(np.uint8) * 4
+    seg = Segmenter()
+    inst = seg.instances(depth, intr, labels)
+    assert inst.max() == n
+    for k in range(1, n + 1):  # instance k is person k, almost pixel for pixel
+        person = who == k
+        assert (inst[person] == k).mean() > 0.95
+        assert (who[inst == k] == k).mean() > 0.95
+    assert not inst[who == 0].any()
+    if n >= 3:  # without step 2b: the people are one candidate
+        comp, table = Segmenter(split=False).cluster_table(depth, intr, labels)
+        assert len(np.unique(comp[(who > 0) & (comp > 0)])) == 1
+
+
+def test_an_arm_held_out_is_not_a_head():
+    intr, depth, who = _group(2, 0.3, arm=True)
+    inst = Segmenter().instances(depth, intr, (who > 0).astype(np.uint8) * 4)
+    assert inst.max() == 2 and (inst[who == 1] == 1).mean() > 0.95
+
+
+def test_real_person_is_one_instance():
+    f = read_depth(REAL / "person.pcd")
+    mask = np.asarray(Image.open(REPO / "docs/forest_study/real_masks/person.png")) > 0
+    d = np.asarray(f.depth_mm)
+    inst = Segmenter().instances(d, f.intrinsics, (mask & (d > 0)).astype(np.uint8) * 5)
+    assert inst.max() == 1 and (inst[mask & (d > 0)] == 1).all()

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from vhgen import cliargs as A
-from vhgen.errors import ForestError
+from vhgen.errors import ConfigError, ForestError
 
 
 def _warn(msg: str) -> None:
@@ -156,18 +156,24 @@ def frame_intrinsics(frame: Any, forest: Any, fx: float | None = None) -> Any:
     return Intrinsics(w, h, f, f, (w - 1) / 2, (h - 1) / 2)
 
 
+def segmenter(min_body_fraction: float | None = None) -> Any:
+    """The segmentation stage with its defaults (``min_body_fraction`` if given)."""
+    from vhgen.forest.segment import Segmenter
+
+    return (Segmenter() if min_body_fraction is None
+            else Segmenter(min_body_fraction=min_body_fraction))
+
+
 def labeller(forest: Any, segment: bool, fx: float | None = None,
               min_body_fraction: float | None = None) -> Any:
     """frame -> (H, W) uint8 labels: the forest, then (``segment``) the segmentation
     stage of :mod:`vhgen.forest.segment` (``min_body_fraction``: its default if None)."""
     import numpy as np
 
-    from vhgen.forest.segment import Segmenter
     from vhgen.forest.trees import Predictor
 
     predictor = Predictor(forest)
-    seg = (Segmenter() if min_body_fraction is None
-           else Segmenter(min_body_fraction=min_body_fraction))
+    seg = segmenter(min_body_fraction)
 
     def label(frame: Any) -> Any:
         labels = predictor.predict(np.asarray(frame.depth_mm))
@@ -188,7 +194,19 @@ def _cmd_label(args: argparse.Namespace) -> int:
     fx = args.fx if args.fx is not None else (
         frame.intrinsics.fx if frame.intrinsics is not None else None)
     check_focal(forest, fx, args.depth)
+    if args.instances and not args.segment:
+        raise ConfigError(None, "--instances", "needs --segment (the people are the "
+                          "segmentation stage's)")
+    seg = segmenter(args.min_body_fraction)
     labels = labeller(forest, args.segment, fx, args.min_body_fraction)(frame)
+    if args.instances:
+        intr = frame_intrinsics(frame, forest, fx)
+        inst = seg.instances(frame.depth_mm, intr, labels)
+        ipath = Path(args.instances)
+        ipath.parent.mkdir(parents=True, exist_ok=True)
+        Image.fromarray(inst, mode="L").save(ipath)
+        print(f"wrote {ipath}: {int(inst.max())} people (pixel value = person, 0 = none, "
+              "numbered left to right)")
     img = Image.fromarray(labels, mode="P")
     pal = palette_for(forest.meta.get("label_colors"), forest.num_classes)
     img.putpalette(pal.ravel().tolist())
@@ -304,6 +322,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("--segment", action="store_true",
                     help="remove floor and walls, cluster the rest, and keep body parts "
                          "only in clusters the forest calls a person (see docs/forest.md)")
+    lb.add_argument("--instances", type=A.output_path(".png"),
+                    help="with --segment: also write an 8-bit PNG of the people found, "
+                         "pixel value k = the k-th person from the left, 0 = none")
     _body_fraction_arg(lb)
     lb.set_defaults(func=_cmd_label)
 

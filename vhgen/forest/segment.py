@@ -10,19 +10,37 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    RANSAC on the back-projected points, each holding at least :attr:`min_plane_fraction`
    of the remaining valid pixels, inliers within a distance that grows with depth as the
    sensor's noise and quantisation do (``plane_tol_m`` at 1 m, times z^2, at most
-   ``plane_tol_max_m``: a person's front is rounder than that); they are floors, walls,
-   tables' tops, and are background;
+   ``plane_tol_max_m``: a person's front is rounder than that). A plane is background
+   when its inliers reach at least ``min_patch_m`` along both of its axes (floors, walls,
+   large table tops), unless most of its border is an occluding edge (what lies beyond
+   it is farther by a depth step): people standing side by side at one distance put
+   their coats' fronts on one plane too, but stand in front of the room, while a wall's
+   or a floor's borders are corners and the nearer things in front of them. The plane
+   most nearly level below the camera is the **floor**;
 2. **clusters**: 4-connected components of the other valid pixels, two neighbours joined
    when their depths differ by less than ``jump_m`` at 1 m (times z, a step the sensor
    sees as a discontinuity);
-3. **vote**: a cluster is a person when it has at least ``min_pixels`` pixels, its 3D
+2b. **people in a cluster** (as ground-based people detectors do): the cluster's points
+   on a height map over the floor (cells of ``cell_m``; without a floor, heights along
+   the camera's up axis). Its heads are the local maxima at least ``min_head_m`` above
+   the floor (without a floor: within ``head_band_m`` of the cluster's top) that stand out
+   by ``min_prominence_m`` from the saddle towards every higher head (a raised hand on an
+   arm does not) and lie ``min_head_gap_m`` apart; a cluster with several heads is split
+   between them, each point going to the nearest head on the floor. Two people who touch
+   are two candidates, not one too wide cluster;
+3. **vote**: a candidate is a person when it has at least ``min_pixels`` pixels, its 3D
    extent is person-like (at most ``max_extent_m`` along its longest axis, at least
    ``min_extent_m``), and the forest gives at least ``min_body_fraction`` of its pixels a
    body part (optionally also: ``min_coherence``, the share of neighbouring body pixels
    with the same part, and ``min_parts`` parts present; both off by default: on build
    data they told people from other clusters no better than the body share);
 4. **labels**: pixels outside person clusters become background (0); inside, a pixel the
-   forest left as background takes the part of the nearest pixel it labelled.
+   forest left as background takes the part of the nearest pixel it labelled;
+   :meth:`Segmenter.instances` numbers the people kept (1, 2, ... left to right).
+
+The geometric settings are a body's and the sensor's sizes (a head 0.2-0.3 m across,
+shoulders 0.15-0.3 m below the top of the head, people at least 1 m tall standing, rooms'
+walls and floors larger than 1 m), not values fitted to frames.
 
 The result is a pure function of the depth, the intrinsics, the forest's labels and the
 seed of the RANSAC draws.
@@ -49,9 +67,17 @@ class Segmenter:
     plane_tol_max_m: float = 0.05
     ransac_iterations: int = 200
     jump_m: float = 0.05  # at 1 m; grows as z
+    min_patch_m: float = 1.0
+    keep_occluders: bool = True  # a plane standing in front of the room is not background
     min_pixels: int = 300
     min_extent_m: float = 0.2
     max_extent_m: float = 2.4
+    split: bool = True  # step 2b; False: one candidate per cluster (the stage before)
+    cell_m: float = 0.05
+    min_head_m: float = 0.9
+    head_band_m: float = 0.6
+    min_prominence_m: float = 0.12
+    min_head_gap_m: float = 0.3
     # chosen on build data, never on real check frames (`python
     # benchmarks/segment_threshold.py FOREST --frames 100`: 100 synthetic frames of
     # people_room/people_real the forest did not train on; the recommended forest's
@@ -65,23 +91,59 @@ class Segmenter:
     seed: int = 0
 
     def planes(self, points: np.ndarray, valid: np.ndarray) -> np.ndarray:
-        """(H, W) bool: pixels on the dominant planes (step 1)."""
+        """(H, W) bool: pixels on the dominant planes' large patches (step 1)."""
+        return self.find_planes(points, valid)[0]
+
+    def find_planes(self, points: np.ndarray, valid: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Step 1: (H, W) bool of the background patches of the dominant planes, and the
+        floor as (4,) float64 (unit normal pointing up, offset: height = p @ n - d), or
+        None when no plane is level enough below the camera."""
         rng = np.random.default_rng(self.seed)
         on_plane = np.zeros(valid.shape, bool)
         left = valid.copy()
         n_valid = int(valid.sum())
+        floor: np.ndarray | None = None
+        best_level = np.cos(np.deg2rad(40.0))  # a floor seen by a camera pitched < 40 deg
+        flat = points.reshape(-1, 3)
         for _ in range(self.max_planes):
             idx = np.flatnonzero(left)
             if len(idx) < max(3, self.min_plane_fraction * n_valid):
                 break
-            p = points.reshape(-1, 3)[idx]
-            inliers = _ransac_plane(p, rng, self.ransac_iterations, self.plane_tol_m,
-                                    self.plane_tol_max_m)
+            p = flat[idx]
+            inliers, plane = _ransac_plane(p, rng, self.ransac_iterations, self.plane_tol_m,
+                                           self.plane_tol_max_m)
             if inliers.sum() < self.min_plane_fraction * n_valid:
                 break
-            on_plane.reshape(-1)[idx[inliers]] = True
-            left.reshape(-1)[idx[inliers]] = False
-        return on_plane
+            mask = np.zeros(valid.shape, bool)
+            mask.reshape(-1)[idx[inliers]] = True
+            left &= ~mask
+            normal, offset = plane
+            # background when its inliers spread along both in-plane axes (a floor, a
+            # wall: even where quantisation at a distance cuts them into stripes)
+            if _spread(p[inliers] @ _plane_basis(normal).T).min() < self.min_patch_m:
+                continue
+            if self.keep_occluders and _occluding_share(mask, valid, points[..., 2],
+                                                        self.jump_m) > 0.5:
+                continue  # it stands in front of what surrounds it: people, not a wall
+            # a background plane also takes its points that an earlier, kept plane held
+            # (where a row of people's plane meets the floor)
+            held = valid & ~on_plane & ~left & ~mask
+            if held.any():
+                q = points[held]
+                tol = np.minimum(self.plane_tol_m * np.maximum(q[:, 2], 0.3) ** 2,
+                                 self.plane_tol_max_m)
+                more = np.zeros(valid.shape, bool)
+                more[held] = np.abs(q @ normal - offset) < tol
+                mask |= more
+            on_plane |= mask
+            # the floor: below the camera, its normal near the camera's up (-y)
+            up = normal if normal[1] < 0 else -normal
+            off = offset if normal[1] < 0 else -offset
+            if -up[1] > best_level and off < 0:
+                best_level = -up[1]
+                floor = np.array([*up, off])
+        return on_plane, floor
 
     def clusters(self, depth_m: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, int]:
         """Components of the ``keep`` pixels, 4-neighbours joined across depth steps
@@ -118,8 +180,11 @@ class Segmenter:
         valid = depth > 0
         z = depth.astype(np.float64) / 1000.0
         points = backproject(intr, z)
-        keep = valid & ~self.planes(points, valid)
+        background, floor = self.find_planes(points, valid)
+        keep = valid & ~background
         comp, n = self.clusters(z, keep)
+        if self.split:
+            comp, n = self.split_people(comp, n, points, floor)
         flat = comp.reshape(-1)
         body = (labels > 0) & keep
         size = np.bincount(flat, minlength=n + 1).astype(np.float64)
@@ -144,6 +209,93 @@ class Segmenter:
                  "coherence": same / np.maximum(pairs, 1), "parts": parts,
                  "extent_m": extent}
         return comp, table
+
+    def split_people(self, comp: np.ndarray, n: int, points: np.ndarray,
+                     floor: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """Step 2b: ``comp`` with every cluster of several heads split between them;
+        returns the new (H, W) int32 ids (0 = none) and their number."""
+        from scipy import ndimage
+
+        out = comp.copy()
+        nxt = n + 1
+        up = floor[:3] if floor is not None else np.array([0.0, -1.0, 0.0])
+        basis = _plane_basis(up)
+        for c, sl in enumerate(ndimage.find_objects(comp), start=1):
+            if sl is None:
+                continue
+            m = comp[sl] == c
+            if m.sum() < 2 * self.min_pixels:
+                continue
+            p = points[sl][m]
+            h = p @ up - (floor[3] if floor is not None else 0.0)
+            q = p @ basis.T
+            heads = self._heads(q, h, floor is not None)
+            if len(heads) < 2:
+                continue
+            d2 = ((q[:, None, :] - heads[None, :, :]) ** 2).sum(-1)
+            near = np.argmin(d2, axis=1)
+            ids = np.where(near == 0, c, nxt + near - 1).astype(np.int32)
+            block = out[sl]
+            block[m] = ids
+            nxt += len(heads) - 1
+        return out, nxt - 1
+
+    def _heads(self, q: np.ndarray, h: np.ndarray, on_floor: bool) -> np.ndarray:
+        """(k, 2) floor positions of the heads among points ``q`` (in-plane, m) of
+        heights ``h`` (m): see step 2b."""
+        from scipy import ndimage
+
+        cell = self.cell_m
+        ij = np.floor((q - q.min(0)) / cell).astype(np.int64)
+        shape = tuple(ij.max(0) + 1)
+        hmap = np.full(shape, -np.inf)
+        np.maximum.at(hmap, (ij[:, 0], ij[:, 1]), h)
+        radius = max(1, int(round(self.min_head_gap_m / 2 / cell)))
+        size = 2 * radius + 1
+        top = ndimage.maximum_filter(hmap, size=size, mode="constant", cval=-np.inf)
+        floor_h = self.min_head_m if on_floor else float(h.max()) - self.head_band_m
+        cand = np.argwhere((hmap == top) & (hmap >= floor_h))
+        order = np.argsort(-hmap[cand[:, 0], cand[:, 1]])
+        filled = np.where(np.isfinite(hmap), hmap, -1.0)  # gaps between people are low
+        kept: list[np.ndarray] = []
+        for k in order:
+            a = cand[k]
+            ha = hmap[a[0], a[1]]
+            ok = True
+            for b in kept:
+                gap = np.hypot(*(a - b)) * cell
+                if gap < self.min_head_gap_m:
+                    ok = False
+                    break
+                steps = int(np.ceil(np.hypot(*(a - b)))) + 1
+                line = np.rint(np.linspace(a, b, steps)).astype(np.int64)
+                saddle = filled[line[:, 0], line[:, 1]].min()
+                if ha - saddle < self.min_prominence_m:
+                    ok = False
+                    break
+            if ok:
+                kept.append(a)
+        heads = []
+        for a in kept:  # the head's centre: its points within a head's size of the top
+            top_q = (a + 0.5) * cell + q.min(0)
+            near = ((q - top_q) ** 2).sum(1) < (self.min_head_gap_m / 1.5) ** 2
+            near &= h > hmap[a[0], a[1]] - 0.25
+            heads.append(q[near].mean(0) if near.any() else top_q)
+        return np.array(heads, np.float64).reshape(-1, 2)
+
+    def instances(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
+                  ) -> np.ndarray:
+        """(H, W) uint8: 0 = no person, k = the k-th person kept (numbered left to right
+        by their mean column; at most 255)."""
+        comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
+        ok = np.flatnonzero(self.is_person(table))
+        cols = np.bincount(comp.reshape(-1), weights=np.tile(np.arange(comp.shape[1]),
+                                                              comp.shape[0]),
+                           minlength=len(table["pixels"]))
+        centre = cols[ok] / np.maximum(table["pixels"][ok], 1)
+        lut = np.zeros(len(table["pixels"]), np.uint8)
+        lut[ok[np.argsort(centre, kind="stable")][:255]] = np.arange(1, min(len(ok), 255) + 1)
+        return lut[comp]
 
     def is_person(self, table: dict[str, np.ndarray]) -> np.ndarray:
         """Step 3 over a :meth:`cluster_table`: (n + 1,) bool, index 0 False."""
@@ -172,12 +324,54 @@ class Segmenter:
         return out
 
 
+def _plane_basis(normal: np.ndarray) -> np.ndarray:
+    """(2, 3): two orthonormal axes of the plane with unit ``normal`` (the first one
+    along the camera's x where it can be)."""
+    x = np.array([1.0, 0.0, 0.0])
+    if abs(normal @ x) > 0.9:
+        x = np.array([0.0, 0.0, 1.0])
+    e1 = x - (x @ normal) * normal
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(normal, e1)])
+
+
+def _occluding_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
+                     jump_m: float) -> float:
+    """Of the 4-neighbour pairs across the border of ``mask`` (to valid pixels), the share
+    where the outside is farther by more than a depth step (``jump_m`` at 1 m, times z):
+    high for something standing in front of a room (a row of people), low for a wall or a
+    floor, whose borders are corners or nearer things in front of them."""
+    far = total = 0
+    for a, b, za, zb in ((mask[:, :-1], mask[:, 1:], z[:, :-1], z[:, 1:]),
+                         (mask[:-1], mask[1:], z[:-1], z[1:])):
+        va = valid[:, :-1] if a.shape[1] != mask.shape[1] else valid[:-1]
+        vb = valid[:, 1:] if a.shape[1] != mask.shape[1] else valid[1:]
+        out_b = a & ~b & vb  # inside at a, outside at b
+        out_a = b & ~a & va
+        far += int((out_b & (zb - za > jump_m * za)).sum())
+        far += int((out_a & (za - zb > jump_m * zb)).sum())
+        total += int(out_b.sum() + out_a.sum())
+    return far / total if total else 0.0
+
+
+def _spread(q: np.ndarray) -> np.ndarray:
+    """5th-95th percentile range of points ``q`` (k, 2) along each of their principal
+    axes (m)."""
+    c = q - q.mean(0)
+    axes = np.linalg.svd(c[:: max(1, len(c) // 5000)], full_matrices=False)[2]
+    t = c @ axes.T
+    lo, hi = np.percentile(t, [5, 95], axis=0)
+    return hi - lo
+
+
 def _ransac_plane(p: np.ndarray, rng: np.random.Generator, iterations: int,
-                  tol_at_1m: float, tol_max: float, sample_size: int = 4000) -> np.ndarray:
+                  tol_at_1m: float, tol_max: float, sample_size: int = 4000
+                  ) -> tuple[np.ndarray, tuple[np.ndarray, float]]:
     """Inliers (bool over ``p`` (N, 3) float64 camera-frame points) of the plane with the
-    most of them: ``iterations`` planes through 3 random points, scored together on a
-    random sample of ``sample_size`` points (distance below ``tol_at_1m * z^2``, at most
-    ``tol_max``), the best refitted by least squares on its inliers among all points."""
+    most of them, and the plane (unit normal, offset: ``p @ normal = offset``):
+    ``iterations`` planes through 3 random points, scored together on a random sample of
+    ``sample_size`` points (distance below ``tol_at_1m * z^2``, at most ``tol_max``), the
+    best refitted by least squares on its inliers among all points."""
     n = len(p)
 
     def tolerance(q: np.ndarray) -> np.ndarray:
@@ -191,19 +385,21 @@ def _ransac_plane(p: np.ndarray, rng: np.random.Generator, iterations: int,
     norms = np.linalg.norm(normals, axis=1)
     ok = norms > 1e-9  # collinear draws give no plane
     if not ok.any():
-        return np.zeros(n, bool)
+        return np.zeros(n, bool), (np.array([0.0, 0.0, 1.0]), 0.0)
     normals = normals[ok] / norms[ok, None]
     offsets = np.einsum("ij,ij->i", normals, tri[ok, 0])
     counts = (np.abs(sample @ normals.T - offsets) < s_tol[:, None]).sum(0)
     k = int(np.argmax(counts))
-    inl = np.abs(p @ normals[k] - offsets[k]) < tol
+    normal, offset = normals[k], float(offsets[k])
+    inl = np.abs(p @ normal - offset) < tol
     if inl.sum() >= 3:  # least-squares refit on the inliers (float64 SVD)
         q = p[inl]
         centre = q.mean(0)
         normal = np.linalg.svd((q - centre)[:: max(1, len(q) // 20000)],
                                full_matrices=False)[2][-1]
-        inl = np.abs((p - centre) @ normal) < tol
-    return inl
+        offset = float(centre @ normal)
+        inl = np.abs(p @ normal - offset) < tol
+    return inl, (normal, offset)
 
 
 def _longest_extent(p: np.ndarray) -> float:
