@@ -131,3 +131,47 @@ def test_forest_eval_on_shared_real_frames(tmp_path, capsys, boxes_store):
                    str(strict), "--segment", "--min-body-fraction", "2",
                    match="--min-body-fraction")
     one_line_error(capsys, "forest", "eval", str(forest), match="give test stores")
+
+
+def test_people_only_frames_are_scored_on_recall(tmp_path):
+    """A frame of people only (the source removed the background): the mask is depth > 0,
+    so every call is a hit and every miss a person pixel; kept out of IoU and precision."""
+    d = np.zeros((48, 64), np.uint16)
+    d[10:, 20:40] = 1500  # 760 px
+    Image.fromarray(d).save(tmp_path / "only.png")
+    Image.fromarray(np.zeros((48, 64), np.uint16)).save(tmp_path / "empty.png")
+    warned: list[str] = []
+    frames = load_real_frames([], [], people_only=[tmp_path], warn=warned.append)
+    assert [f.kind for f in frames] == ["people_only"]
+    assert len(warned) == 1 and "empty.png" in warned[0] and "without a measured" in warned[0]
+    half = evaluate_real(lambda fr: np.where(np.arange(64) < 30, 1, 0).astype(np.uint8)
+                         [None].repeat(48, 0), frames)
+    row = half["per_frame"][0]
+    assert (row["tp"], row["fn"], row["fp"], row["background"]) == (380, 380, 0, 0)
+    assert row["recall"] == 0.5 and row["iou"] is None
+    assert half["people_only"] == {"frames": 1, "person_recall": 0.5,
+                                   "person_recall_mean": 0.5}
+    assert half["frames_with_people"] == 0 and half["person_iou"] is None
+
+
+def test_forest_eval_on_skeltrack_frames(tmp_path, capsys, boxes_store):
+    """`vhgen forest eval FOREST --people-only` on two of the shared Skeltrack frames
+    (one with two people): per-frame recall over every measured pixel."""
+    forest = tmp_path / "f.npz"
+    assert main(["forest", "train", boxes_store, "--out", str(forest), "--trees", "1",
+                 "--depth", "4", "--features", "10", "--thresholds", "4",
+                 "--pixels-per-image", "50", "--quiet"]) == 0
+    names = ["depth-data-1028894671.png", "depth-data-1399145206.png"]
+    assert main(["forest", "eval", str(forest), "--people-only",
+                 *[str(REAL / "skeltrack" / n) for n in names],
+                 "--json", str(tmp_path / "s.json")]) == 0
+    printed = capsys.readouterr().out
+    assert "people only (mask = depth > 0): person recall" in printed
+    res = json.loads((tmp_path / "s.json").read_text())["real"]
+    rows = {Path(r["frame"]).name: r for r in res["per_frame"]}
+    assert list(rows) == names
+    for n, r in rows.items():
+        valid = int((np.asarray(Image.open(REAL / "skeltrack" / n)) > 0).sum())
+        assert r["kind"] == "people_only" and r["tp"] + r["fn"] == valid and r["fp"] == 0
+        assert f"{n:<28}   only" in printed
+    assert res["people_only"]["frames"] == 2 and 0.0 <= res["people_only"]["person_recall"] <= 1

@@ -75,13 +75,20 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    if not (args.stores or args.real or args.nobody):
-        raise ForestError("forest eval: give test stores, --real frames or --nobody frames")
+    if not (args.stores or args.real or args.nobody or args.people_only):
+        raise ForestError("forest eval: give test stores, --real, --nobody or --people-only "
+                          "frames")
+    if args.masks is not None and not args.real:
+        raise ForestError(f"--masks {args.masks}: person masks are for --real frames; none "
+                          "given")
+    if args.min_body_fraction is not None and not args.segment:
+        raise ForestError(f"--min-body-fraction {args.min_body_fraction:g}: a setting of "
+                          "--segment, which is not given")
     forest = load_any_forest(args.forest, fx=args.fx)
     out: dict[str, Any] = {"forest": str(args.forest)}
     if args.stores:
         out.update(_eval_stores(forest, args))
-    if args.real or args.nobody:
+    if args.real or args.nobody or args.people_only:
         out["real"] = _eval_real(forest, args)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -92,7 +99,13 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
     from vhgen.forest.realeval import evaluate_real, load_real_frames, table
 
-    frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn)
+    frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn,
+                              people_only=args.people_only)
+    if args.segment and any(f.people_only for f in frames):
+        # measured on ../shared/real/skeltrack with every pixel called a body part: the
+        # plane stage took 55-74% of each body (docs/forest.md "What forest eval reports")
+        _warn("--segment on --people-only frames: with no floor or walls left, the plane "
+              "stage takes flat parts of the body for planes; their recall measures that")
     for f in frames:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
@@ -109,6 +122,7 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
 def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
     from vhgen.forest.data import check_compatible, store_info
     from vhgen.forest.evaluate import evaluate, table
+    from vhgen.forest.persons import table as persons_table
 
     infos = [store_info(s) for s in args.stores]
     ref = check_compatible(infos, "test")
@@ -119,8 +133,18 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
                           f"was trained on {forest.meta.get('label_scheme')!r} "
                           f"({len(names)} parts)")
     check_focal(forest, ref.fx, ref.path)
-    res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out)
+    mask, called_by = None, "forest labels > 0"
+    if args.segment:
+        seg = segmenter(args.min_body_fraction)
+        called_by = f"--segment (min_body_fraction {seg.min_body_fraction:g})"
+
+        def mask(depth: Any, labels: Any, info: Any) -> Any:
+            return seg.apply(depth, info.intrinsics, labels) > 0
+
+    res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out,
+                   person_mask=mask, called_by=called_by)
     print(table(res))
+    print(persons_table(res["people"]))
     if res["frames_per_second"]:
         print(f"inference: {res['frames_per_second']:.1f} frames/s over {res['frames']} "
               "frames (all threads)")
@@ -292,9 +316,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     e.add_argument("--nobody", nargs="+", default=[], type=A.existing_path(),
                    metavar="PATH", help="real frames with nobody in them (every pixel is "
                    "background)")
+    e.add_argument("--people-only", nargs="+", default=[], type=A.existing_path(),
+                   metavar="PATH", help="real frames whose background the source removed "
+                   "(e.g. ../shared/real/skeltrack): every measured pixel is a person (the "
+                   "mask is depth > 0); scored on person recall alone")
     e.add_argument("--segment", action="store_true",
-                   help="real frames: the segmentation stage after the forest (as forest "
-                        "label --segment)")
+                   help="the segmentation stage after the forest (as forest label "
+                        "--segment): real frames are scored on its labels, stores' person "
+                        "scores on its person mask (their part scores stay the forest's)")
     _body_fraction_arg(e)
     e.add_argument("--masks", type=A.existing_path(),
                    help="folder of person masks, <frame name>.png (8-bit, 0 = not a person); "

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from vhgen.camera import Intrinsics
 from vhgen.errors import ForestError, StoreError
 from vhgen.store.zarr_store import open_store, read_attrs
 from vhgen.store.zarr_store import read_frames as read_store_frames
@@ -32,6 +33,18 @@ class StoreInfo:
     sensor: str
     frames_per_shard: int
     label_colors: tuple[tuple[int, int, int], ...] | None = None
+    width: int = 0
+    height: int = 0
+    cx: float | None = None  # None: the image centre
+    cy: float | None = None
+    has_instances: bool = False  # an ``instances`` array (person k = value k)
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """The frames' pinhole camera (the principal point at the centre if not recorded)."""
+        return Intrinsics(self.width, self.height, self.fx, self.fy,
+                          (self.width - 1) / 2 if self.cx is None else self.cx,
+                          (self.height - 1) / 2 if self.cy is None else self.cy)
 
 
 def store_info(path: str | Path) -> StoreInfo:
@@ -63,11 +76,18 @@ def store_info(path: str | Path) -> StoreInfo:
     if depth.shape != labels.shape or depth.ndim != 3:
         raise ForestError(f"{p}: depth {depth.shape} and labels {labels.shape} differ")
     colors = attrs.get("label_colors")
+    has_instances = (p / "instances" / "zarr.json").is_file()
+    if has_instances and g["instances"].shape != depth.shape:
+        raise ForestError(f"{p}: instances {g['instances'].shape} and depth {depth.shape} "
+                          "differ")
     return StoreInfo(str(p), int(depth.shape[0]), str(attrs.get("label_scheme", "")),
                      tuple(names), float(intr["fx"]), float(intr.get("fy", intr["fx"])),
                      str(sensor.get("name", "")),
                      int(depth.shards[0] if depth.shards else depth.chunks[0]),
-                     tuple(tuple(c) for c in colors) if colors else None)
+                     tuple(tuple(c) for c in colors) if colors else None,
+                     int(depth.shape[2]), int(depth.shape[1]),
+                     float(intr["cx"]) if "cx" in intr else None,
+                     float(intr["cy"]) if "cy" in intr else None, has_instances)
 
 
 def check_compatible(infos: list[StoreInfo], what: str = "training") -> StoreInfo:
@@ -119,3 +139,25 @@ def read_frames(frames: list[tuple[str, int, int]]) -> tuple[np.ndarray, np.ndar
         return np.zeros((0, 0, 0), np.uint16), np.zeros((0, 0, 0), np.uint8)
     return (np.concatenate(depth_parts).astype(np.uint16, copy=False),
             np.concatenate(label_parts).astype(np.uint8, copy=False))
+
+
+def read_instances(frames: list[tuple[str, int, int]], labels: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Person instances (N, H, W) uint8 of the selected frames (0 = no person, k = the
+    k-th person of the frame's manifest row) and (N,) bool: whether they came from the
+    store's ``instances`` array. A store without one (written before it existed) gives
+    ``labels > 0`` (the frames' ``labels``, (N, H, W)) as one person."""
+    out = (np.asarray(labels) > 0).astype(np.uint8)
+    has = np.zeros(len(frames), bool)
+    by_store: dict[str, list[int]] = {}
+    for i, (path, _, _) in enumerate(frames):
+        by_store.setdefault(path, []).append(i)
+    for path, idx in by_store.items():
+        info = store_info(path)
+        if not info.has_instances:
+            continue
+        fs = np.asarray([frames[i][1] for i in idx], np.int64)
+        got = read_store_frames(open_store(path), ("instances",), fs, info.frames_per_shard)
+        out[idx] = got["instances"]
+        has[idx] = True
+    return out, has

@@ -4,18 +4,28 @@ Evaluated pixels are body pixels with a measurement (label > 0 and depth > 0), a
 Shotton et al.; the forest may answer background (0) there, which counts as an error.
 ``pixel_accuracy`` = correct / evaluated; ``mean_per_class`` = mean over the parts that occur
 of (correct pixels of the part / its pixels).
+
+The same pass scores the person/background decision per person instance, distance and
+group size (:mod:`vhgen.forest.persons`), on the forest's labels > 0 or on the person mask
+of a later stage (``person_mask``).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from vhgen.forest.data import StoreInfo, read_frames, select_frames
+from vhgen.forest.data import StoreInfo, read_frames, read_instances, select_frames
+from vhgen.forest.persons import PeopleScore, frame_people
 from vhgen.forest.trees import Forest, Predictor
+
+# (depth (H, W) uint16 mm, the forest's labels (H, W) uint8, the frame's store) ->
+# (H, W) bool: the pixels called a person
+PersonMask = Callable[[np.ndarray, np.ndarray, StoreInfo], np.ndarray]
 
 log = logging.getLogger(__name__)
 
@@ -47,10 +57,16 @@ def scores(conf: np.ndarray, names: list[str]) -> dict:
 
 def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None = None,
              seed: int = 0, batch: int = 32, out_dir: str | Path | None = None,
-             sheet_frames: int = 4) -> dict:
+             sheet_frames: int = 4, person_mask: PersonMask | None = None,
+             called_by: str = "forest labels > 0") -> dict:
     """Label every selected frame and score it; ``out_dir`` gets confusion.png and
-    contact_sheet.png. Returns the scores plus frames, seconds, fps and the matrix."""
+    contact_sheet.png. Returns the scores plus frames, seconds, fps and the matrix, and
+    under ``people`` the person scores of :mod:`vhgen.forest.persons` on ``person_mask``
+    (default: the forest's labels > 0; ``called_by`` names it in the output). The part
+    scores are always the forest's own labels."""
     names = list(forest.meta["label_names"])
+    by_path = {i.path: i for i in infos}
+    people = PeopleScore(called_by=called_by)
     c = forest.num_classes
     frames = select_frames(infos, max_frames, seed)
     pred_fn = Predictor(forest)
@@ -71,6 +87,12 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
         pred = pred_fn.predict(depth)
         seconds += time.perf_counter() - t0
         conf += confusion(pred, labels, depth, c)
+        inst, has = read_instances(part, labels)
+        for i, (path, f, _) in enumerate(part):
+            called = (pred[i] > 0 if person_mask is None
+                      else person_mask(depth[i], pred[i], by_path[path]))
+            people.add(frame_people(called, depth[i], inst[i], has_instances=bool(has[i])),
+                       (path, f), bool(has[i]))
         for i in range(len(part)):
             if s + i in show_ids:
                 shown.append((depth[i], labels[i], pred[i], part[i][2]))
@@ -78,7 +100,8 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     res = scores(conf, names)
     res.update({"frames": len(frames), "predict_seconds": round(seconds, 3),
                 "frames_per_second": round(len(frames) / seconds, 2) if seconds else None,
-                "confusion": conf.tolist(), "label_names": names})
+                "confusion": conf.tolist(), "label_names": names,
+                "people": people.result()})
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

@@ -2,10 +2,11 @@
 
 Real frames carry no part labels; what they can be scored on is the person/background
 decision. A frame is either a frame *with people*, which has a person mask (an 8-bit
-PNG of the frame's size, 0 = not a person, any other value = a person), or a frame *with
-nobody*. Only pixels with a measurement count. A pixel is called a person when the
-forest gives it any body part (label > 0), after the optional segmentation stage
-(:mod:`vhgen.forest.segment`).
+PNG of the frame's size, 0 = not a person, any other value = a person), a frame *with
+nobody*, or a frame of *people only*, whose background the source removed (Skeltrack's
+test frames): its mask is ``depth > 0``. Only pixels with a measurement count. A pixel
+is called a person when the forest gives it any body part (label > 0), after the
+optional segmentation stage (:mod:`vhgen.forest.segment`).
 
 - ``person_iou``: over the frames with people, person pixels called a person / (person
   pixels or pixels called a person), pooled over the frames (``person_iou_mean``: the
@@ -14,7 +15,10 @@ forest gives it any body part (label > 0), after the optional segmentation stage
   person / called;
 - ``background_called``: the share of background pixels (every valid pixel of a frame
   with nobody, the valid pixels outside the mask of a frame with people) called a body
-  part, pooled; also for the two kinds of frames apart.
+  part, pooled; also for the two kinds of frames apart;
+- ``people_only``: over the frames of people only, ``person_recall`` (pooled) and
+  ``person_recall_mean`` (per frame); they have no background, so no precision or IoU,
+  and they are kept out of the scores above.
 """
 
 from __future__ import annotations
@@ -34,16 +38,27 @@ log = logging.getLogger(__name__)
 MASK_SUFFIX = ".mask.png"  # a mask beside its frame: capture.pcd -> capture.mask.png
 
 
+KINDS = ("people", "nobody", "people_only")
+
+
 @dataclass(frozen=True, eq=False)
 class RealFrame:
-    """A real frame to score: its depth, and its person mask (None: nobody in it)."""
+    """A real frame to score: its depth, and its person mask (None: nobody in it);
+    ``people_only``: the mask is every measured pixel (the source removed the rest)."""
 
     frame: DepthFrame
     mask: np.ndarray | None
+    people_only: bool = False
 
     @property
     def name(self) -> str:
         return Path(self.frame.path).name
+
+    @property
+    def kind(self) -> str:
+        """``people``, ``nobody`` or ``people_only``."""
+        return "people_only" if self.people_only else (
+            "nobody" if self.mask is None else "people")
 
 
 def find_mask(frame_path: Path, masks: Path | None) -> Path | None:
@@ -77,22 +92,30 @@ def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
 
 def load_real_frames(people: Iterable[str | Path], nobody: Iterable[str | Path],
                      masks: str | Path | None = None,
-                     warn: Callable[[str], None] = log.warning) -> list[RealFrame]:
-    """Real frames with people (each with its mask: see :func:`find_mask`) and frames with
-    nobody. A frame that cannot be read, or a frame with people without a readable mask,
-    is one warning line and is left out; the rest go on. ForestError when none is left."""
+                     warn: Callable[[str], None] = log.warning,
+                     people_only: Iterable[str | Path] = ()) -> list[RealFrame]:
+    """Real frames with people (each with its mask: see :func:`find_mask`), frames with
+    nobody and frames of people only (mask ``depth > 0``). A frame that cannot be read, a
+    frame with people without a readable mask, or a frame of people only without a
+    measured pixel is one warning line and is left out; the rest go on. ForestError when
+    none is left."""
     mdir = Path(masks) if masks is not None else None
     if mdir is not None and not mdir.is_dir():
         raise ForestError(f"--masks {mdir}: no such folder")
     out: list[RealFrame] = []
-    for paths, with_people in ((people, True), (nobody, False)):
+    for paths, kind in ((people, "people"), (nobody, "nobody"), (people_only, "people_only")):
         for f in depth_files(paths):
             if f.name.endswith(MASK_SUFFIX):
                 continue  # a mask beside its frame, not a frame
             try:
                 frame = read_depth(f)
                 mask = None
-                if with_people:
+                if kind == "people_only":
+                    mask = np.asarray(frame.depth_mm) > 0
+                    if not mask.any():
+                        raise DepthFileError(f, "a frame of people only (--people-only) "
+                                                "without a measured pixel")
+                elif kind == "people":
                     m = find_mask(f, mdir)
                     if m is None:
                         raise DepthFileError(f, "a frame with people needs a person mask "
@@ -101,9 +124,9 @@ def load_real_frames(people: Iterable[str | Path], nobody: Iterable[str | Path],
             except DepthFileError as e:
                 warn(f"skipped {e}")
                 continue
-            out.append(RealFrame(frame, mask))
+            out.append(RealFrame(frame, mask, kind == "people_only"))
     if not out:
-        raise ForestError("no readable real frame given (--real / --nobody)")
+        raise ForestError("no readable real frame given (--real / --nobody / --people-only)")
     return out
 
 
@@ -119,13 +142,14 @@ def person_counts(pred: np.ndarray, depth_mm: np.ndarray, mask: np.ndarray | Non
 
 
 def person_scores(per_frame: list[dict]) -> dict:
-    """The pooled scores of :func:`person_counts` rows (``people``: whether the frame has
-    a mask)."""
+    """The pooled scores of :func:`person_counts` rows (``kind``: one of :data:`KINDS`)."""
     def total(rows: list[dict], k: str) -> int:
         return sum(r[k] for r in rows)
 
-    withp = [r for r in per_frame if r["people"]]
-    nob = [r for r in per_frame if not r["people"]]
+    withp = [r for r in per_frame if r["kind"] == "people"]
+    nob = [r for r in per_frame if r["kind"] == "nobody"]
+    only = [r for r in per_frame if r["kind"] == "people_only"]
+    recalls = [r["tp"] / (r["tp"] + r["fn"]) for r in only if r["tp"] + r["fn"]]
     tp, fp, fn = total(withp, "tp"), total(withp, "fp"), total(withp, "fn")
 
     def ratio(a: int, b: int) -> float | None:
@@ -138,9 +162,14 @@ def person_scores(per_frame: list[dict]) -> dict:
         "person_iou": ratio(tp, tp + fp + fn),
         "person_iou_mean": float(np.mean(ious)) if ious else None,
         "person_recall": ratio(tp, tp + fn), "person_precision": ratio(tp, tp + fp),
-        "background_called": ratio(total(per_frame, "fp"), total(per_frame, "background")),
+        "background_called": ratio(total(withp + nob, "fp"),
+                                   total(withp + nob, "background")),
         "background_called_nobody": ratio(total(nob, "fp"), total(nob, "background")),
         "background_called_people": ratio(fp, total(withp, "background")),
+        "people_only": {"frames": len(only),
+                        "person_recall": ratio(total(only, "tp"),
+                                               total(only, "tp") + total(only, "fn")),
+                        "person_recall_mean": float(np.mean(recalls)) if recalls else None},
     }
 
 
@@ -155,8 +184,9 @@ def evaluate_real(predict: Callable[[DepthFrame], np.ndarray], frames: list[Real
         pred = predict(rf.frame)
         c = person_counts(pred, rf.frame.depth_mm, rf.mask)
         n = c["tp"] + c["fp"] + c["fn"]
-        rows.append({"frame": rf.frame.path, "people": rf.mask is not None, **c,
-                     "iou": c["tp"] / n if rf.mask is not None and n else None,
+        rows.append({"frame": rf.frame.path, "kind": rf.kind, "people": rf.mask is not None,
+                     **c, "iou": c["tp"] / n if rf.kind == "people" and n else None,
+                     "recall": c["tp"] / (c["tp"] + c["fn"]) if c["tp"] + c["fn"] else None,
                      "background_called": c["fp"] / c["background"] if c["background"]
                      else None})
         shown.append((rf, pred))
@@ -205,14 +235,21 @@ def table(res: dict) -> str:
     def f(v: float | None) -> str:
         return "-" if v is None else f"{v:.3f}"
 
-    lines = [f"{'real frame':<28} {'people':>6} {'IoU':>6} {'bg called':>9}"]
+    shown = {"people": "yes", "nobody": "no", "people_only": "only"}
+    lines = [f"{'real frame':<28} {'people':>6} {'IoU':>6} {'recall':>6} {'bg called':>9}"]
     for r in res["per_frame"]:
-        lines.append(f"{Path(r['frame']).name:<28} {'yes' if r['people'] else 'no':>6} "
-                     f"{f(r['iou']):>6} {f(r['background_called']):>9}")
-    lines.append(f"person IoU {f(res['person_iou'])} (recall {f(res['person_recall'])}, "
-                 f"precision {f(res['person_precision'])}) over "
-                 f"{res['frames_with_people']} frames with people; background called a "
-                 f"body part {f(res['background_called'])} (frames with nobody "
-                 f"{f(res['background_called_nobody'])}, around people "
-                 f"{f(res['background_called_people'])})")
+        lines.append(f"{Path(r['frame']).name:<28} {shown[r['kind']]:>6} "
+                     f"{f(r['iou']):>6} {f(r['recall']):>6} {f(r['background_called']):>9}")
+    only = res["people_only"]
+    if only["frames"]:
+        lines.append(f"people only (mask = depth > 0): person recall "
+                     f"{f(only['person_recall'])} (mean per frame "
+                     f"{f(only['person_recall_mean'])}) over {only['frames']} frames")
+    if res["frames_with_people"] or res["frames_with_nobody"]:
+        lines.append(f"person IoU {f(res['person_iou'])} (recall {f(res['person_recall'])}, "
+                     f"precision {f(res['person_precision'])}) over "
+                     f"{res['frames_with_people']} frames with people; background called a "
+                     f"body part {f(res['background_called'])} (frames with nobody "
+                     f"{f(res['background_called_nobody'])}, around people "
+                     f"{f(res['background_called_people'])})")
     return "\n".join(lines)

@@ -1,0 +1,220 @@
+"""Person scores of labelled frames: by distance, by group size, per person instance.
+
+What is scored is a *called-person* mask, (H, W) bool: by default the forest's labels > 0;
+with the segmentation stage (or any later stage) its person mask. The truth is a
+frame's person instances, (H, W) uint8 (0 = no person, k = the k-th person: a store's
+``instances`` array; a store without one gives ``labels > 0`` as one person). Only pixels
+with a measurement (depth > 0) count. No threshold here was fitted to any data:
+
+- a person is **visible** when at least one of its pixels has a measurement; a frame's
+  **group size** is the number of its visible people, binned ``1``, ``2-3``, ``4-6``
+  (``0`` and ``>6`` when such frames occur; ``?`` when the truth has no instances);
+- a person's **distance** is the median depth of its visible pixels, in metres, binned
+  ``1-2``, ``2-3``, ``3-4.5`` (half-open: [1, 2), [2, 3), [3, 4.5); ``<1`` and ``>4.5``
+  when such people occur): the ranges of the issue;
+- a person is **found** when at least half of its visible pixels are called a person
+  (:data:`FOUND_SHARE`, the rule of the issue); ``instance_recall`` = found / visible people;
+- a person **touches** another when one of its pixels is a 4-neighbour of another
+  person's pixel in the instance image (with or without measurement: the sensor's
+  shadow between two overlapping people does not part them);
+- ``recall`` (pixels): person pixels called a person / person pixels, per distance bin
+  over the pixels of the people whose distance falls in the bin;
+- ``precision`` (pixels): called pixels that are a person / called pixels; per distance
+  bin over the called pixels whose *own* depth falls in the bin (a wrong call has no
+  person to take a distance from), per group bin over the called pixels of its frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+DISTANCE_EDGES_M = (1.0, 2.0, 3.0, 4.5)
+DISTANCE_BINS = ("<1", "1-2", "2-3", "3-4.5", ">4.5")
+MAIN_DISTANCE_BINS = ("1-2", "2-3", "3-4.5")  # always reported, the others when present
+GROUP_BINS = ((0, 0, "0"), (1, 1, "1"), (2, 3, "2-3"), (4, 6, "4-6"))
+MAIN_GROUP_BINS = ("1", "2-3", "4-6")
+UNKNOWN_GROUP = "?"
+FOUND_SHARE = 0.5
+
+
+def distance_bin(distance_m: float) -> str:
+    """The bin name of a distance in metres (see the module docstring)."""
+    return DISTANCE_BINS[int(np.searchsorted(DISTANCE_EDGES_M, distance_m, side="right"))]
+
+
+def group_bin(people: int | None) -> str:
+    """The bin name of a group size (None: unknown, ``?``)."""
+    if people is None:
+        return UNKNOWN_GROUP
+    for lo, hi, name in GROUP_BINS:
+        if lo <= people <= hi:
+            return name
+    return f">{GROUP_BINS[-1][1]}"
+
+
+def _touching(instances: np.ndarray) -> np.ndarray:
+    """(256,) bool: instance ids with a 4-neighbour of another instance (not 0)."""
+    out = np.zeros(256, bool)
+    for a, b in ((instances[:, :-1], instances[:, 1:]), (instances[:-1], instances[1:])):
+        m = (a > 0) & (b > 0) & (a != b)
+        out[a[m]] = True
+        out[b[m]] = True
+    return out
+
+
+@dataclass(frozen=True)
+class FramePeople:
+    """One frame's person counts (see :func:`frame_people`)."""
+
+    group: str
+    people: list[dict]  # per visible person: instance, pixels, called, distance_m, touching
+    called_person: np.ndarray  # (len(DISTANCE_BINS),) int64, by the pixel's own depth
+    called_other: np.ndarray  # (len(DISTANCE_BINS),) int64, called pixels on no person
+
+
+def frame_people(called: np.ndarray, depth_mm: np.ndarray, instances: np.ndarray,
+                 *, has_instances: bool = True) -> FramePeople:
+    """Score one frame. ``called`` (H, W) bool, ``depth_mm`` (H, W) uint16 (0 = no
+    measurement), ``instances`` (H, W) uint8 (0 = no person); ``has_instances`` False:
+    the instances are ``labels > 0`` (one person of unknown group size)."""
+    depth = np.asarray(depth_mm)
+    inst = np.asarray(instances).astype(np.uint8, copy=False)
+    valid = depth > 0
+    vinst = np.where(valid, inst, 0)
+    called = np.asarray(called, bool) & valid
+    pixels = np.bincount(vinst.ravel(), minlength=256)
+    hit = np.bincount(vinst[called], minlength=256)
+    touching = _touching(inst)
+    people = []
+    for k in np.flatnonzero(pixels[1:]) + 1:
+        d = float(np.median(depth[vinst == k])) / 1000.0
+        people.append({"instance": int(k), "pixels": int(pixels[k]), "called": int(hit[k]),
+                       "distance_m": round(d, 4), "touching": bool(touching[k])})
+    px_bin = np.searchsorted(DISTANCE_EDGES_M, depth / 1000.0, side="right")
+    on_person = vinst > 0
+    nb = len(DISTANCE_BINS)
+    return FramePeople(
+        group_bin(len(people) if has_instances else None), people,
+        np.bincount(px_bin[called & on_person], minlength=nb).astype(np.int64),
+        np.bincount(px_bin[called & ~on_person], minlength=nb).astype(np.int64))
+
+
+def _ratio(a: int, b: int) -> float | None:
+    return a / b if b else None
+
+
+@dataclass
+class _Tally:
+    frames: int = 0
+    people: int = 0
+    found: int = 0
+    pixels: int = 0
+    called: int = 0
+    called_person: int = 0  # called pixels that are a person (precision's numerator)
+    called_other: int = 0  # called pixels that are no person
+
+    def row(self, name: str, with_frames: bool, with_precision: bool) -> dict:
+        r: dict = {"bin": name}
+        if with_frames:
+            r["frames"] = self.frames
+        r.update({"people": self.people, "found": self.found,
+                  "instance_recall": _ratio(self.found, self.people),
+                  "pixels": self.pixels, "recall": _ratio(self.called, self.pixels)})
+        if with_precision:
+            r.update({"called_person": self.called_person, "called_other": self.called_other,
+                      "precision": _ratio(self.called_person,
+                                          self.called_person + self.called_other)})
+        return r
+
+
+@dataclass
+class PeopleScore:
+    """Accumulates :func:`frame_people` over frames; :meth:`result` gives the scores."""
+
+    called_by: str = "forest labels > 0"
+    truth: set[str] = field(default_factory=set)
+    by_distance: dict[str, _Tally] = field(default_factory=dict)
+    by_group: dict[str, _Tally] = field(default_factory=dict)
+    by_contact: dict[str, _Tally] = field(default_factory=dict)
+    overall: _Tally = field(default_factory=_Tally)
+    instances: list[list] = field(default_factory=list)
+
+    def add(self, fp: FramePeople, where: tuple[str, int], has_instances: bool = True
+            ) -> None:
+        """Add a frame; ``where`` = (store, frame) names it in the per-person rows."""
+        self.truth.add("instances" if has_instances else "labels")
+        g = self.by_group.setdefault(fp.group, _Tally())
+        tallies = [g, self.overall]
+        for t in tallies:
+            t.frames += 1
+            t.called_person += int(fp.called_person.sum())
+            t.called_other += int(fp.called_other.sum())
+        for b, name in enumerate(DISTANCE_BINS):
+            d = self.by_distance.setdefault(name, _Tally())
+            d.called_person += int(fp.called_person[b])
+            d.called_other += int(fp.called_other[b])
+        for p in fp.people:
+            found = p["called"] >= FOUND_SHARE * p["pixels"]
+            contact = "touching" if p["touching"] else "apart"
+            for t in (g, self.overall, self.by_distance[distance_bin(p["distance_m"])],
+                      self.by_contact.setdefault(contact, _Tally())):
+                t.people += 1
+                t.found += int(found)
+                t.pixels += p["pixels"]
+                t.called += p["called"]
+            self.instances.append([where[0], where[1], p["instance"], p["pixels"],
+                                   p["distance_m"], round(p["called"] / p["pixels"], 4),
+                                   bool(found), p["touching"]])
+
+    def result(self) -> dict:
+        """The scores as plain dicts (the ``people`` entry of ``forest eval``'s JSON)."""
+        def rows(tallies: dict[str, _Tally], order: tuple[str, ...], main: tuple[str, ...],
+                 with_frames: bool, with_precision: bool) -> list[dict]:
+            names = [n for n in order if n in main or
+                     (n in tallies and (tallies[n].people or tallies[n].frames
+                                        or tallies[n].called_other))]
+            names += sorted(n for n in tallies if n not in order and n not in names)
+            return [tallies.get(n, _Tally()).row(n, with_frames, with_precision)
+                    for n in names]
+
+        groups = tuple(n for _, _, n in GROUP_BINS) + (UNKNOWN_GROUP,)
+        return {
+            "called": self.called_by,
+            "truth": "+".join(sorted(self.truth)),
+            "found_share": FOUND_SHARE,
+            "distance_edges_m": list(DISTANCE_EDGES_M),
+            "overall": self.overall.row("all", True, True),
+            "by_distance": rows(self.by_distance, DISTANCE_BINS, MAIN_DISTANCE_BINS,
+                                False, True),
+            "by_group": rows(self.by_group, groups, MAIN_GROUP_BINS, True, True),
+            "by_contact": rows(self.by_contact, ("touching", "apart"), ("touching", "apart"),
+                               False, False),
+            "instance_columns": ["store", "frame", "instance", "pixels", "distance_m",
+                                 "called_share", "found", "touching"],
+            "instances": self.instances,
+        }
+
+
+def table(res: dict) -> str:
+    """The person scores of :meth:`PeopleScore.result` as text."""
+    def f(v: float | None) -> str:
+        return "-" if v is None else f"{v:.3f}"
+
+    head = (f"{'frames':>7} {'people':>7} {'found':>6} {'inst.recall':>11} "
+            f"{'px recall':>9} {'px precision':>12}")
+    lines = [f"person scores (called: {res['called']}; found: at least "
+             f"{res['found_share']:.0%} of a person's pixels called; truth: {res['truth']})"]
+
+    def block(title: str, rows: list[dict], suffix: str = "") -> None:
+        lines.append(f"{title:<16} {head}")
+        for r in rows:
+            lines.append(f"{r['bin'] + suffix:<16} {r.get('frames', ''):>7} {r['people']:>7} "
+                         f"{r['found']:>6} {f(r['instance_recall']):>11} {f(r['recall']):>9} "
+                         f"{f(r.get('precision')):>12}")
+
+    block("distance", res["by_distance"], " m")
+    block("contact", res["by_contact"])
+    block("group size", [*res["by_group"], res["overall"]])
+    return "\n".join(lines)
