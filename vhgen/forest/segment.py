@@ -24,10 +24,12 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    on a height map over the floor (cells of ``cell_m``; without a floor, heights along
    the camera's up axis). Its heads are the local maxima at least ``min_head_m`` above
    the floor (without a floor: within ``head_band_m`` of the cluster's top) that stand out
-   by ``min_prominence_m`` from the saddle towards every higher head (a raised hand on an
-   arm does not) and lie ``min_head_gap_m`` apart; a cluster with several heads is split
-   between them, each point going to the nearest head on the floor. Two people who touch
-   are two candidates, not one too wide cluster;
+   by ``min_prominence_m`` from the saddle towards every higher head (a hand held out on
+   an arm does not), are ``min_head_width_m`` across within that depth of their top (a
+   raised fist is narrower) and lie ``min_head_gap_m`` apart; a cluster with several heads is split
+   between them, each point going to the nearest head on the floor (only clusters wider
+   than ``min_split_width_m`` across: two people). Two people who touch are two
+   candidates, not one too wide cluster;
 3. **vote**: a candidate is a person when it has at least ``min_pixels`` pixels, its 3D
    extent is person-like (at most ``max_extent_m`` along its longest axis, at least
    ``min_extent_m``), and the forest gives at least ``min_body_fraction`` of its pixels a
@@ -78,6 +80,8 @@ class Segmenter:
     head_band_m: float = 0.6
     min_prominence_m: float = 0.12
     min_head_gap_m: float = 0.3
+    min_split_width_m: float = 0.7  # two people side by side at least; one is ~0.5
+    min_head_width_m: float = 0.12  # a head 0.15-0.2 m across; a fist, a forearm ~0.08
     # chosen on build data, never on real check frames (`python
     # benchmarks/segment_threshold.py FOREST --frames 100`: 100 synthetic frames of
     # people_room/people_real the forest did not train on; the recommended forest's
@@ -229,6 +233,8 @@ class Segmenter:
             p = points[sl][m]
             h = p @ up - (floor[3] if floor is not None else 0.0)
             q = p @ basis.T
+            if _spread(q).max() < self.min_split_width_m:
+                continue  # one person wide: shoulders and raised hands are no heads
             heads = self._heads(q, h, floor is not None)
             if len(heads) < 2:
                 continue
@@ -261,6 +267,12 @@ class Segmenter:
         for k in order:
             a = cand[k]
             ha = hmap[a[0], a[1]]
+            # a head is as wide as a head just below its top; a raised fist is not
+            top_q = (a + 0.5) * cell + q.min(0)
+            cap = (((q - top_q) ** 2).sum(1) < (self.min_head_gap_m / 1.5) ** 2) & (
+                h > ha - self.min_prominence_m)
+            if cap.sum() < 3 or _spread(q[cap]).max() < self.min_head_width_m:
+                continue
             ok = True
             for b in kept:
                 gap = np.hypot(*(a - b)) * cell
