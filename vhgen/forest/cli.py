@@ -101,11 +101,6 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
 
     frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn,
                               people_only=args.people_only)
-    if args.segment and any(f.people_only for f in frames):
-        # measured on ../shared/real/skeltrack with every pixel called a body part: the
-        # plane stage took 55-74% of each body (docs/forest.md "What forest eval reports")
-        _warn("--segment on --people-only frames: with no floor or walls left, the plane "
-              "stage takes flat parts of the body for planes; their recall measures that")
     for f in frames:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
