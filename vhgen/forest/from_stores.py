@@ -18,6 +18,7 @@ from typing import Any
 
 from vhgen.errors import ForestError
 from vhgen.executor import InlinePool
+from vhgen.executor.choice import choose_executor
 from vhgen.forest.data import check_compatible, read_frames, select_frames, store_info
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
 from vhgen.forest.trees import Forest
@@ -72,12 +73,7 @@ def train_forest(stores: list[str], params: TrainParams, *, max_frames: int | No
     num_classes = len(meta["label_names"]) + 1
     t0 = time.perf_counter()
     pool: Any
-    if executor not in ("auto", "local", "ray"):
-        raise ForestError(f"--executor: {executor!r} is not one of auto, local, ray")
-    if executor == "local" and address is not None:
-        raise ForestError(f"--executor local runs on this machine; it cannot use the Ray "
-                          f"cluster at {address}")
-    if executor == "ray" or address is not None:
+    if choose_executor(executor, address, error=ForestError) == "ray":
         from vhgen.executor.raypool import RayPool
 
         pool = RayPool.connect(FrameShard, address=address, local_cpus=workers or 1,

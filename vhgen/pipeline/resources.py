@@ -13,6 +13,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from vhgen.errors import VhgenError
+from vhgen.executor.choice import EXECUTORS as EXECUTORS
+from vhgen.executor.choice import choose_executor as choose
 from vhgen.job_config import JobConfig
 
 
@@ -51,27 +53,9 @@ def worker_context(cfg: JobConfig, cuda_visible_devices: str | None) -> Any:
     return create_gpu_context(cuda_visible_devices)
 
 
-EXECUTORS = ("auto", "local", "ray")
 
 
 def choose_executor(requested: str, address: str | None, cfg: JobConfig) -> str:
-    """``local`` (worker processes of this machine) or ``ray``.
-
-    ``auto``: Ray when there is a cluster to join (``--address`` or ``RAY_ADDRESS``) or
-    the config asks for GPU workers (Ray assigns each its GPU); otherwise the local pool,
-    which starts in a fraction of the time a local Ray needs. Contradictions are errors.
-    """
-    if requested not in EXECUTORS:
-        raise VhgenError(f"--executor: {requested!r} is not one of {', '.join(EXECUTORS)}")
-    if requested == "local":
-        if address:
-            raise VhgenError(f"--executor local runs on this machine; it cannot use the Ray "
-                             f"cluster at {address} (drop --address / RAY_ADDRESS, or use "
-                             "--executor ray)")
-        if cfg.gpus_per_worker > 0:
-            raise VhgenError("--executor local does not assign GPUs to workers; "
-                             "render.gpus_per_worker needs --executor ray (or auto)")
-        return "local"
-    if requested == "ray":
-        return "ray"
-    return "ray" if address or cfg.gpus_per_worker > 0 else "local"
+    """The frame job's executor (:func:`vhgen.executor.choice.choose_executor`, with the
+    config's GPUs per worker)."""
+    return choose(requested, address, gpus_per_worker=cfg.gpus_per_worker)
