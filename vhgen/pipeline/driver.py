@@ -40,11 +40,11 @@ from vhgen.store.manifest import ManifestMerger
 from vhgen.store.output import (
     check_output,
     check_same_config,
-    config_attrs,
     open_output,
     os_error_line,
 )
 from vhgen.store.zarr_store import completed_shards
+from vhgen.version import __version__
 
 log = logging.getLogger(__name__)
 
@@ -110,6 +110,22 @@ def _start_pool(kind: str, cfg: JobConfig, worker: type, address: str | None) ->
     return pool
 
 
+def config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict[str, Any]:
+    """The store attributes that follow from the config alone."""
+    return {
+        "vhgen_version": __version__,
+        "config_name": cfg.name,
+        "seed": cfg.seed,
+        "label_scheme": scheme.name,
+        "label_names": scheme.names,
+        "label_colors": scheme.palette.tolist(),
+        "class_names": list(cfg.class_names),
+        "sensor": cfg.sensor.to_dict(),
+        "depth_units": "millimetre (uint16), 0 = no measurement",
+        "frames_per_shard": cfg.frames_per_shard,
+    }
+
+
 def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             resume: bool = False, overwrite: bool = False, max_frames: int | None = None,
             progress: bool = False, executor: str = "auto",
@@ -150,9 +166,13 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
             t_ray = time.perf_counter() - t0
         job, bodies = prepared.result()
         plan, poses = job.plan, job.poses
-        open_output(out, cfg, {**attrs, "rig_bones": job.rig_bones,
-                               "num_frames": plan.num_frames, "motions": poses.report},
-                    plan.num_frames, resume)
+        intr = cfg.sensor.intrinsics
+        open_output(out, {**attrs, "rig_bones": job.rig_bones, "num_frames": plan.num_frames,
+                          "motions": poses.report}, plan.num_frames, resume,
+                    height=intr.height, width=intr.width,
+                    frames_per_shard=cfg.frames_per_shard,
+                    compression_level=cfg.compression_level,
+                    raw11=cfg.sensor.encoding.raw11)
         done = completed_shards(out)
         todo = [t for t in plan.tasks if t.shard not in done]
         log.info("%d frames in %d shards (%d to do), %d poses from %d motion files, %s "

@@ -13,12 +13,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-from vhgen.body.labels import LabelScheme
 from vhgen.errors import StoreError
-from vhgen.job_config import JobConfig
 from vhgen.store.manifest import unreadable_parts
 from vhgen.store.zarr_store import MANIFEST_PARTS, clean_partials, create_store, read_attrs
-from vhgen.version import __version__
 
 log = logging.getLogger(__name__)
 
@@ -67,22 +64,6 @@ def os_error_line(e: OSError, out: Path, what: str) -> str:
             "rerun with --resume")
 
 
-def config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict[str, Any]:
-    """The store attributes that follow from the config alone."""
-    return {
-        "vhgen_version": __version__,
-        "config_name": cfg.name,
-        "seed": cfg.seed,
-        "label_scheme": scheme.name,
-        "label_names": scheme.names,
-        "label_colors": scheme.palette.tolist(),
-        "class_names": list(cfg.class_names),
-        "sensor": cfg.sensor.to_dict(),
-        "depth_units": "millimetre (uint16), 0 = no measurement",
-        "frames_per_shard": cfg.frames_per_shard,
-    }
-
-
 def check_same_config(out: Path, attrs: dict[str, Any]) -> None:
     """Refuse to resume a store made by another config (the keys of :data:`RESUME_KEYS`
     present in ``attrs``)."""
@@ -100,15 +81,15 @@ def _short(v: Any) -> str:
     return s if len(s) <= 40 else s[:37] + "..."
 
 
-def open_output(out: Path, cfg: JobConfig, attrs: dict[str, Any], num_frames: int,
-                resume: bool) -> None:
-    """Create the store for ``num_frames`` frames of ``cfg`` with ``attrs``, or, when
-    resuming an existing one, check that the same config made it and remove the partial
-    files a killed writer left."""
-    intr = cfg.sensor.intrinsics
+def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool, *,
+                height: int, width: int, frames_per_shard: int, compression_level: int,
+                raw11: bool) -> None:
+    """Create the store for ``num_frames`` frames (H x W, shards of ``frames_per_shard``)
+    with ``attrs``, or, when resuming an existing one (whose config the caller checked
+    before any work, :func:`check_same_config`), remove the partial files a killed writer
+    left and the manifest parts that cannot be read (their shards are rendered again)."""
     try:
         if resume and (out / "zarr.json").is_file():
-            check_same_config(out, attrs)
             n_clean = clean_partials(out)
             if n_clean:
                 log.warning("removed %d partial files left by a killed writer", n_clean)
@@ -117,9 +98,9 @@ def open_output(out: Path, cfg: JobConfig, attrs: dict[str, Any], num_frames: in
                 log.warning("%s: unreadable; shard %d is rendered again", part, shard)
                 part.unlink()
         else:
-            create_store(out, num_frames=num_frames, height=intr.height, width=intr.width,
-                         frames_per_shard=cfg.frames_per_shard,
-                         compression_level=cfg.compression_level, attrs=attrs,
-                         overwrite=True, raw11=cfg.sensor.encoding.raw11)
+            create_store(out, num_frames=num_frames, height=height, width=width,
+                         frames_per_shard=frames_per_shard,
+                         compression_level=compression_level, attrs=attrs,
+                         overwrite=True, raw11=raw11)
     except OSError as e:
         raise StoreError(os_error_line(e, out, "cannot create the store")) from None
