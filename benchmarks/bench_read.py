@@ -4,9 +4,9 @@
         [--workers 2] [--batch 32] [--threads N]
 
 Without ``--store`` it first makes one: the recommended training scene
-(configs/forest/people_room.yaml: shards of 16 frames, zstd 3) limited to ``--frames``
-frames, in a temporary folder (``--out`` keeps it). Every shard file is read once before
-measuring, so all rows see a warm page cache.
+(configs/forest/people_room.yaml: shards of 16 frames, zstd 3, or ``--codec lz4``)
+limited to ``--frames`` frames, in a temporary folder (``--out`` keeps it). Every shard
+file is read once before measuring, so all rows see a warm page cache.
 
 Rows: three orders, each over every frame once at most (one epoch), stopped after
 ``--seconds``: *random* (a seeded permutation of the positions), *sampler*
@@ -42,13 +42,15 @@ ROWS = [("random", "zarr"), ("random", "ds[i]"), ("random", "get_batch"),
         ("stream", "zarr"), ("stream", "stream")]
 
 
-def make_store(out: Path, frames: int, backend: str) -> None:
+def make_store(out: Path, frames: int, backend: str, codec: str) -> None:
+    from dataclasses import replace
+
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
 
     cfg = JobConfig.load(REPO / "configs" / "forest" / "people_room.yaml", backend=backend,
                          num_workers=1)
-    run_job(cfg, out, max_frames=frames)
+    run_job(replace(cfg, codec=codec), out, max_frames=frames)
 
 
 def _order(ds, order: str, rank: int, ranks: int) -> list[np.ndarray]:
@@ -156,6 +158,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=256, help="frames of the store made")
     ap.add_argument("--out", help="keep the store made here")
     ap.add_argument("--backend", default="osmesa", choices=["egl", "osmesa"])
+    ap.add_argument("--codec", default="zstd", choices=["zstd", "lz4"],
+                    help="output.codec of the store made")
     ap.add_argument("--seconds", type=float, default=1.5, help="per measurement")
     ap.add_argument("--workers", type=int, default=2, help="processes of the pool")
     ap.add_argument("--batch", type=int, default=32)
@@ -169,7 +173,7 @@ def main() -> None:
         tmp = Path(tempfile.mkdtemp(prefix="bench_read_"))
         store = Path(args.out) if args.out else tmp / "people_room.zarr"
         t = time.perf_counter()
-        make_store(store, args.frames, args.backend)
+        make_store(store, args.frames, args.backend, args.codec)
         print(f"made {store} ({args.frames} frames) in {time.perf_counter() - t:.0f} s")
     try:
         import vhgen.dataset as vd

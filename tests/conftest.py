@@ -86,7 +86,8 @@ def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
 
 
 def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int = 4,
-                          height: int = 96, width: int = 128, seed: int = 0) -> Path:
+                          height: int = 96, width: int = 128, seed: int = 0,
+                          codec: str = "zstd") -> Path:
     """A store in vhgen's layout without rendering: depth, labels, instances, classes of
     seeded noise, and a manifest.parquet of a few columns of each kind (numbers, strings
     with nulls, fixed-size lists, list of structs; rows shuffled) with its parts. For
@@ -100,7 +101,7 @@ def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int
     rng = np.random.default_rng(seed)
     create_store(path, num_frames=frames, height=height, width=width,
                  frames_per_shard=frames_per_shard, compression_level=3,
-                 attrs={"label_names": ["a", "b", "c"]})
+                 attrs={"label_names": ["a", "b", "c"]}, codec=codec)
     for s in range(-(-frames // frames_per_shard)):
         n = min(frames_per_shard, frames - s * frames_per_shard)
         depth = (rng.integers(500, 4000, (n, 1, 1)) + rng.integers(0, 8, (n, height, width))

@@ -19,6 +19,12 @@ def store(tmp_path_factory):
                                  frames_per_shard=4)
 
 
+@pytest.fixture(scope="module")
+def lz4_store(tmp_path_factory):
+    return write_synthetic_store(tmp_path_factory.mktemp("shards") / "lz4.zarr", frames=22,
+                                 frames_per_shard=4, codec="lz4")
+
+
 @pytest.fixture
 def damaged(store, tmp_path):
     out = tmp_path / "damaged.zarr"
@@ -44,6 +50,22 @@ def test_frames_equal_zarr(store, threads):
         reader.read_into([(name, int(f), out[k]) for k, f in enumerate(frames)])
         assert out.dtype == want.dtype and np.array_equal(out, want[frames])
     reader.close()
+
+
+def test_lz4_store_decodes_to_the_same_arrays(store, lz4_store):
+    """output.codec lz4 (blosc, shuffled bytes) changes the files, not one value."""
+    truth = _zarr(store)
+    assert all(np.array_equal(a, truth[n]) for n, a in _zarr(lz4_store).items())
+    reader = ShardReader(lz4_store, list(truth), threads=2)
+    assert {reader.layouts[n].compressor for n in truth} == {"blosc"}  # type: ignore[union-attr]
+    frames = np.random.default_rng(0).permutation(22)
+    for name, want in truth.items():
+        out = reader.empty(name, len(frames))
+        reader.read_into([(name, int(f), out[k]) for k, f in enumerate(frames)])
+        assert out.dtype == want.dtype and np.array_equal(out, want[frames])
+    size = {s: sum(f.stat().st_size for f in (s / "depth").rglob("*")) for s in
+            (store, lz4_store)}
+    assert size[lz4_store] != size[store]  # really another codec
 
 
 def test_other_layouts_read_through_zarr(tmp_path):

@@ -115,6 +115,6 @@ def open_output(out: Path, cfg: JobConfig, attrs: dict[str, Any], num_frames: in
             create_store(out, num_frames=num_frames, height=intr.height, width=intr.width,
                          frames_per_shard=cfg.frames_per_shard,
                          compression_level=cfg.compression_level, attrs=attrs,
-                         overwrite=True, raw11=cfg.sensor.encoding.raw11)
+                         overwrite=True, raw11=cfg.sensor.encoding.raw11, codec=cfg.codec)
     except OSError as e:
         raise StoreError(os_error_line(e, out, "cannot create the store")) from None

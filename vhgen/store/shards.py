@@ -2,14 +2,15 @@
 
 A vhgen array is sharded along frames (:func:`vhgen.store.zarr_store.create_store`): shard
 ``s`` of array ``name`` is one file, ``name/c/<s>/0/0``, holding ``frames_per_shard`` inner
-chunks of one frame each (bytes little-endian, then zstd) and, at its end, the shard
-index: one (offset, nbytes) uint64 pair per inner chunk, then the index's crc32c. zarr-python
-reads one frame through its async codec pipeline in ~2 ms of Python per frame and array,
-several times the zstd decode itself. Here a frame costs a ``pread`` of its chunk (the
-index is read once and cached) and one zstd decode straight into the caller's array, and
-the frames of a request are decoded in threads (numcodecs' zstd releases the GIL), each
-inner chunk once. Arrays in any other layout (unsharded stores of older vhgen, other
-codecs) are read through zarr, with the same values.
+chunks of one frame each (bytes little-endian, then zstd, or blosc for stores written with
+``output.codec: lz4``) and, at its end, the shard index: one (offset, nbytes) uint64 pair
+per inner chunk, then the index's crc32c. zarr-python reads one frame through its async
+codec pipeline in ~2 ms of Python per frame and array, several times the decode itself.
+Here a frame costs a ``pread`` of its chunk (the index is read once and cached) and one
+decode straight into the caller's array, and the frames of a request are decoded in
+threads (numcodecs' zstd and blosc release the GIL), each inner chunk once. Arrays in any
+other layout (unsharded stores of older vhgen, other codecs) are read through zarr, with
+the same values.
 
 A shard that cannot be read (file missing, index truncated or failing its checksum, chunk
 that does not decode to one frame) raises :class:`vhgen.errors.ShardError` naming the
@@ -51,7 +52,7 @@ class ArrayLayout:
     separator: str  # chunk key separator: "c/<s>/0/0" or "c.<s>.0.0"
     index_at_end: bool
     index_crc: bool
-    zstd: bool
+    compressor: str  # "zstd", "blosc" or "" (bytes only)
     swap: bool  # stored byte order differs from this machine's
 
     @property
@@ -90,8 +91,8 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         return None
     inner = [c.get("name") for c in conf.get("codecs", [])]
     index = [c.get("name") for c in conf.get("index_codecs", [])]
-    if inner not in (["bytes"], ["bytes", "zstd"]) or index not in (["bytes"],
-                                                                     ["bytes", "crc32c"]):
+    if inner not in (["bytes"], ["bytes", "zstd"], ["bytes", "blosc"]) or index not in (
+            ["bytes"], ["bytes", "crc32c"]):
         return None
     endian = conf["codecs"][0].get("configuration", {}).get("endian", "little")
     index_endian = conf["index_codecs"][0].get("configuration", {}).get("endian", "little")
@@ -101,8 +102,13 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         name=name, directory=directory, shape=shape, dtype=dtype, frames_per_shard=grid[0],
         fill_value=meta["fill_value"], separator=separator,
         index_at_end=conf.get("index_location", "end") == "end",
-        index_crc=index[-1] == "crc32c", zstd=inner[-1] == "zstd",
+        index_crc=index[-1] == "crc32c", compressor=inner[-1] if len(inner) > 1 else "",
         swap=dtype.itemsize > 1 and endian != sys.byteorder)
+
+
+def blosc_content_size(chunk: bytes | memoryview) -> int | None:
+    """The decoded size a blosc chunk's header states (None: too short to hold one)."""
+    return int.from_bytes(chunk[4:8], "little") if len(chunk) >= 16 else None
 
 
 def zstd_content_size(chunk: bytes | memoryview) -> int | None:
@@ -265,6 +271,7 @@ class ShardReader:
 
     def _read_shard(self, layout: ArrayLayout, shard: int,
                     group: list[tuple[int, np.ndarray]]) -> None:
+        import numcodecs.blosc  # type: ignore[import-untyped]
         import numcodecs.zstd  # type: ignore[import-untyped]
 
         path = layout.shard_path(shard)
@@ -288,13 +295,14 @@ class ShardReader:
                 chunk = os.pread(fd, nbytes, offset)
                 if len(chunk) != nbytes:
                     raise self._fail(layout, shard, f"frame {frame}: chunk cut short")
-                if layout.zstd:
-                    stated = zstd_content_size(chunk)
+                if layout.compressor:
+                    zstd = layout.compressor == "zstd"
+                    stated = (zstd_content_size if zstd else blosc_content_size)(chunk)
                     if stated is not None and stated != want:
                         raise self._fail(layout, shard, f"frame {frame}: chunk decodes to "
                                          f"{stated} bytes, expected {want}")
                     try:
-                        numcodecs.zstd.decompress(chunk, out)
+                        (numcodecs.zstd if zstd else numcodecs.blosc).decompress(chunk, out)
                     except (RuntimeError, ValueError) as e:
                         raise self._fail(layout, shard, f"frame {frame}: {e}") from None
                 elif nbytes != want:
