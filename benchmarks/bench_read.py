@@ -18,7 +18,7 @@ stream order), ``ds[i]``, ``ds.get_batch`` of ``--batch`` positions of the order
 ``ds.stream(batch_size=--batch)``. Columns: one process (``--threads`` decode threads,
 default the reader's), and a pool of ``--workers`` processes (plain multiprocessing, one
 decode thread each, started together; each reads its own share: its own permutation, its
-sampler replica, its stream worker).
+sampler replica, its stream worker). Every cell runs in fresh processes.
 """
 
 from __future__ import annotations
@@ -83,7 +83,8 @@ def measure(store: str, order: str, reader: str, arrays, seconds: float, batch: 
     names = ds.arrays
     g = zarr.open_group(store, mode="r")
     ds[0]
-    ds.get_batch([0, 1])
+    for _ in range(2):  # threads started, the heap grown to a batch, as in a long run
+        ds.get_batch(np.arange(min(batch, len(ds))))
     for n in names:  # warm zarr's own metadata cache too
         g[n][0]
     if reader == "stream":
@@ -137,12 +138,14 @@ def _worker(args: tuple, barrier, results) -> None:
 
 
 def pool_rate(store: str, order: str, reader: str, arrays, seconds: float, batch: int,
-              workers: int) -> float:
-    """Frames/s of ``workers`` processes started together, each reading its share."""
+              workers: int, threads: int | None = 1) -> float:
+    """Frames/s of ``workers`` fresh processes started together, each reading its share
+    (fresh: a process that read through zarr first decodes slower in threads, its heap
+    left in another state by zarr's large buffers)."""
     ctx = mp.get_context("spawn")
     barrier, results = ctx.Barrier(workers), ctx.Queue()
     procs = [ctx.Process(target=_worker, args=((store, order, reader, arrays, seconds, batch,
-                                                1, w, workers), barrier, results))
+                                                threads, w, workers), barrier, results))
              for w in range(workers)]
     for p in procs:
         p.start()
@@ -190,14 +193,14 @@ def main() -> None:
         print("|" + "|".join("-" * (len(c)) for c in head.split("|")[1:-1]) + "|")
         for sel, arrays in SELECTIONS.items():
             for order, reader in ROWS:
-                one_n, one_t = measure(str(store), order, reader, arrays, args.seconds,
-                                       args.batch, args.threads)
+                one = pool_rate(str(store), order, reader, arrays, args.seconds, args.batch,
+                                1, args.threads)
                 pool = pool_rate(str(store), order, reader, arrays, args.seconds, args.batch,
                                  args.workers)
                 name = reader if reader != "get_batch" else f"get_batch({args.batch})"
                 if reader == "stream":
                     name = f"stream({args.batch})"
-                print(f"| {order:7s} | {sel:12s} | {name:14s} | {one_n / one_t:9.0f} | "
+                print(f"| {order:7s} | {sel:12s} | {name:14s} | {one:9.0f} | "
                       f"{pool:{len(f'pool of {args.workers}')}.0f} |", flush=True)
     finally:
         if tmp is not None and not args.out:
