@@ -457,3 +457,14 @@ def test_unfinished_store_and_missing_array(synthetic, tmp_path):
     with pytest.raises(StoreError, match=f"{store}: no array 'classes'"):
         vd.open(store, arrays=["classes"], partial=True)
     assert "classes" not in vd.open(store, partial=True).arrays
+
+
+def test_view_in_any_frame_order(synthetic):
+    """A dataset made with its frames in another order reads them in that order."""
+    good = vd.open(synthetic)
+    frames = np.array([13, 2, 14, 3, 12, 40, 15])
+    ds = vd.FrameDataset(synthetic, frames=frames)
+    assert ds.frames.tolist() == frames.tolist()
+    for i in range(len(frames)):
+        _same(ds[i], good[int(frames[i])])
+    _check_batch(ds.get_batch([6, 0]), [good[15], good[13]], ds.arrays)

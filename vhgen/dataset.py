@@ -187,6 +187,7 @@ class FrameDataset:
         self.manifest = table
         self.frames = table.column("frame").to_numpy().astype(np.int64)
         self.frames.setflags(write=False)
+        self._sorted = bool(np.all(np.diff(self.frames) >= 0))
         self._root: Any = None
         self._reader: ShardReader | None = None
         self._columns: ManifestColumns | None = None
@@ -271,9 +272,13 @@ class FrameDataset:
             return got
         # a second frame of this shard in a row: a shard-by-shard walk; decode the rest of
         # the shard's frames (of this view) at once
-        lo, hi = np.searchsorted(self.frames, [shard * self.frames_per_shard,
-                                               (shard + 1) * self.frames_per_shard])
-        rest = [int(f) for f in np.unique(self.frames[lo:hi]) if f != frame and f not in seen]
+        bounds = [shard * self.frames_per_shard, (shard + 1) * self.frames_per_shard]
+        if self._sorted:
+            lo, hi = np.searchsorted(self.frames, bounds)
+            here = self.frames[lo:hi]
+        else:  # a view made with frames in another order
+            here = self.frames[(self.frames >= bounds[0]) & (self.frames < bounds[1])]
+        rest = [int(f) for f in np.unique(here) if f != frame and f not in seen]
         decoded = self._decode([frame, *rest])
         ready.update(zip(rest, decoded[1:], strict=True))
         seen.update(rest)
