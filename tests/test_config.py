@@ -49,3 +49,10 @@ def test_sensor_config_errors_name_the_field(tmp_path, old, new, field):
     with pytest.raises(ConfigError) as ei:
         SensorConfig.load(p)
     assert field in str(ei.value) and str(p) in str(ei.value)
+
+
+def test_output_codec(tmp_path):
+    p = tmp_path / "job.yaml"
+    p.write_text("name: x\nmotions: [a.bvh]\noutput: {codec: lz4, frames_per_shard: 4}\n")
+    cfg = JobConfig.load(p)
+    assert cfg.codec == "lz4" and cfg.frames_per_shard == 4
