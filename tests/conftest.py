@@ -83,3 +83,53 @@ def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
     (tmp / "small.yaml").write_text(SMALL_STORE_CONFIG.format(m=shared_mocap))
     run_job(JobConfig.load(tmp / "small.yaml"), tmp / "small.zarr")
     return tmp / "small.zarr"
+
+
+def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int = 4,
+                          height: int = 96, width: int = 128, seed: int = 0,
+                          codec: str = "zstd") -> Path:
+    """A store in vhgen's layout without rendering: depth, labels, instances, classes of
+    seeded noise, and a manifest.parquet of a few columns of each kind (numbers, strings
+    with nulls, fixed-size lists, list of structs; rows shuffled) with its parts. For
+    reader tests that need many frames or a store to damage."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from vhgen.store.zarr_store import create_store, write_shard
+
+    rng = np.random.default_rng(seed)
+    create_store(path, num_frames=frames, height=height, width=width,
+                 frames_per_shard=frames_per_shard, compression_level=3,
+                 attrs={"label_names": ["a", "b", "c"]}, codec=codec)
+    for s in range(-(-frames // frames_per_shard)):
+        n = min(frames_per_shard, frames - s * frames_per_shard)
+        depth = (rng.integers(500, 4000, (n, 1, 1)) + rng.integers(0, 8, (n, height, width))
+                 ).astype(np.uint16)
+        labels = rng.integers(0, 4, (n, height, width), dtype=np.uint8)
+        write_shard(path, s, frames_per_shard, depth, labels,
+                    extra={"instances": (labels > 0).astype(np.uint8), "classes": labels // 2})
+    f = np.arange(frames)
+    people = [[{"instance": 1, "avatar_id": int(i % 3), "joints": [0.5, float(i)]}]
+              * int(i % 3) for i in f]
+    table = pa.table({
+        "frame": pa.array(f, pa.int64()),
+        "shard": pa.array(f // frames_per_shard, pa.int32()),
+        "avatar_id": pa.array(f % 3, pa.int32()),
+        "seed": pa.array(f * 2**40 + 7, pa.uint64()),
+        "body_pixels": pa.array(f * 10, pa.int32()),
+        "camera_pitch_deg": pa.array(f * 0.25, pa.float64()),
+        "visible": pa.array(f % 2 == 0),
+        "motion_file": pa.array([f"m{i % 5}.bvh" for i in f]),
+        "scene": pa.array([None if i % 4 == 0 else f'{{"props": {i}}}' for i in f]),
+        "world_to_camera": pa.array([list(np.arange(16.0) + i) for i in f],
+                                    pa.list_(pa.float64(), 16)),
+        "joints_cam": pa.array([list(np.arange(6, dtype=np.float32) / (i + 1)) for i in f],
+                               pa.list_(pa.float32(), 6)),
+        "people": pa.array(people),
+    })
+    for s in range(-(-frames // frames_per_shard)):
+        part = table.slice(s * frames_per_shard, frames_per_shard)
+        pq.write_table(part, path / "manifest" / f"part-{s:06d}.parquet")
+    pq.write_table(table.take(rng.permutation(frames)), path / "manifest.parquet")
+    return path

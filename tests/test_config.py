@@ -8,6 +8,7 @@ from vhgen.yamlio import configs_dir
 def test_shipped_configs_load():
     cfg = JobConfig.load(configs_dir() / "scenes" / "default.yaml")
     assert cfg.sensor.intrinsics.width == 640 and cfg.motions == ("builtin:demo",)
+    assert cfg.codec == "zstd"  # stores stay as they were unless output.codec says lz4
     for p in (configs_dir() / "sensors").glob("*.yaml"):
         SensorConfig.load(p)
 
@@ -20,6 +21,7 @@ def test_shipped_configs_load():
     ("name: x\nmotions: [a.bvh]\nrender: {backend: vulkan}\n", "render.backend"),
     ("name: x\nmotions: [a.bvh]\nsensor: nosuch\n", "sensor"),
     ("name: x\nmotions: [a.bvh]\nseed: -1\n", "seed"),
+    ("name: x\nmotions: [a.bvh]\noutput: {codec: gzip}\n", "output.codec"),
     ("name: x\nmotions: [a.bvh\n", "line"),
 ])
 def test_bad_configs_name_file_and_field(tmp_path, text, field):
@@ -47,3 +49,10 @@ def test_sensor_config_errors_name_the_field(tmp_path, old, new, field):
     with pytest.raises(ConfigError) as ei:
         SensorConfig.load(p)
     assert field in str(ei.value) and str(p) in str(ei.value)
+
+
+def test_output_codec(tmp_path):
+    p = tmp_path / "job.yaml"
+    p.write_text("name: x\nmotions: [a.bvh]\noutput: {codec: lz4, frames_per_shard: 4}\n")
+    cfg = JobConfig.load(p)
+    assert cfg.codec == "lz4" and cfg.frames_per_shard == 4

@@ -49,6 +49,21 @@ class StoreError(VhgenError):
     """A dataset store that does not follow the vhgen contract."""
 
 
+class ShardError(StoreError):
+    """A shard of a store's array that cannot be read (missing, truncated, checksum or
+    decode failure); names the store, the array, the shard and its frames."""
+
+    def __init__(self, store: str | Path, array: str, shard: int, frames: tuple[int, int],
+                 message: str):
+        self.store = str(store)
+        self.array = array
+        self.shard = shard
+        self.frames = frames
+        self.message = message
+        super().__init__(f"{self.store}: {array} shard {shard} (frames {frames[0]}-"
+                         f"{frames[1]}): {message}")
+
+
 class ForestError(VhgenError):
     """A forest file, training set or forest command argument that cannot be used."""
 

@@ -125,6 +125,7 @@ class JobConfig:
     source: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
+    codec: str = "zstd"  # output.codec: zstd (smallest) or lz4 (fastest to read)
 
     @property
     def class_names(self) -> tuple[str, ...]:
@@ -194,7 +195,11 @@ class JobConfig:
                                   f"carried things: the scene has {len(names)} classes")
             avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
-        check_keys(out, {"frames_per_shard", "compression_level"}, set(), path, "output.")
+        check_keys(out, {"frames_per_shard", "compression_level", "codec"}, set(), path,
+                   "output.")
+        codec = out.get("codec", "zstd")
+        if codec not in ("zstd", "lz4"):
+            raise ConfigError(path, "output.codec", f"must be zstd or lz4, got {codec!r}")
         ren = d.get("render") or {}
         check_keys(ren, {"backend", "skinning", "gpus_per_worker"}, set(), path, "render.")
         skinning = ren.get("skinning", "lbs")
@@ -255,7 +260,7 @@ class JobConfig:
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True, default=3),
             backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
-            source=str(path), gpus_per_worker=gpus)
+            source=str(path), gpus_per_worker=gpus, codec=codec)
 
 
 def _camera(ca: dict, src) -> CameraConfig:

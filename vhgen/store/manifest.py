@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -240,3 +241,96 @@ def read_manifest(store: str | Path, columns: list[str] | None = None):
     if not path.is_file():
         raise StoreError(f"{store}: no {MANIFEST_FILE} (job not finished?)")
     return read_manifest_table(path, columns)
+
+
+# fixed-size list columns returned as arrays of this shape (-1: as many rows as needed)
+ARRAY_COLUMNS = {"world_to_camera": (4, 4), "joints_cam": (-1, 3), "body_offset": (3,)}
+
+
+def array_dtype(name: str) -> type:
+    """The NumPy dtype of array column ``name`` (joints in float32, as written)."""
+    return np.float32 if name == "joints_cam" else np.float64
+
+
+class ManifestColumns:
+    """A manifest table kept as columns, made into row dicts only when asked for.
+
+    Numbers are NumPy arrays and the :data:`ARRAY_COLUMNS` one (n, ...) array each
+    (read-only); strings, JSON, the ``people`` structs and columns with nulls stay Arrow
+    arrays and become Python objects row by row. :meth:`row` gives exactly what
+    ``table.slice(i, 1).to_pylist()[0]`` gives, with the array columns as NumPy arrays of
+    their :data:`ARRAY_COLUMNS` shape; :meth:`take` gives a batch, column by column.
+    """
+
+    def __init__(self, table: Any):
+        import pyarrow as pa
+
+        self.names: list[str] = list(table.column_names)
+        self.num_rows = int(table.num_rows)
+        self._numbers: dict[str, np.ndarray] = {}
+        self._arrays: dict[str, np.ndarray] = {}
+        self._arrow: dict[str, Any] = {}
+        for name in self.names:
+            col = table.column(name).combine_chunks()
+            typ = col.type
+            if col.null_count == 0 and (pa.types.is_integer(typ) or pa.types.is_floating(typ)
+                                        or pa.types.is_boolean(typ)):
+                values = np.asarray(col.to_numpy(zero_copy_only=False))
+                values.setflags(write=False)
+                self._numbers[name] = values
+            elif (name in ARRAY_COLUMNS and col.null_count == 0
+                  and pa.types.is_fixed_size_list(typ)):
+                flat: np.ndarray = np.asarray(col.flatten().to_numpy(zero_copy_only=False),
+                                              array_dtype(name))
+                values = flat.reshape(self.num_rows, -1)
+                values.setflags(write=False)
+                self._arrays[name] = values
+            else:
+                self._arrow[name] = col
+
+    def row(self, i: int) -> dict[str, Any]:
+        """Row ``i`` as a dict (fresh objects: changing them changes nothing here)."""
+        out: dict[str, Any] = {}
+        for name in self.names:
+            if name in self._numbers:
+                out[name] = self._numbers[name].item(i)
+            elif name in self._arrays:
+                out[name] = self._arrays[name][i].reshape(ARRAY_COLUMNS[name]).copy()
+            else:
+                value = self._arrow[name][i].as_py()
+                if name in ARRAY_COLUMNS and value is not None:
+                    value = np.asarray(value, array_dtype(name)).reshape(ARRAY_COLUMNS[name])
+                out[name] = value
+        return out
+
+    def take(self, rows: np.ndarray) -> dict[str, Any]:
+        """Rows ``rows`` column by column: numbers as (B,) arrays (the column's dtype), the
+        array columns as (B, ...) arrays, other columns as lists of B Python objects."""
+        import pyarrow as pa
+
+        rows = np.asarray(rows, np.int64)
+        out: dict[str, Any] = {}
+        for name in self.names:
+            if name in self._numbers:
+                out[name] = self._numbers[name][rows]
+            elif name in self._arrays:
+                shape = ARRAY_COLUMNS[name]
+                out[name] = self._arrays[name][rows].reshape(len(rows), *shape)
+            else:
+                values = self._arrow[name].take(pa.array(rows)).to_pylist()
+                if name in ARRAY_COLUMNS:
+                    values = [None if v is None else np.asarray(v, array_dtype(name))
+                              .reshape(ARRAY_COLUMNS[name]) for v in values]
+                out[name] = values
+        return out
+
+
+def read_parts(store: str | Path) -> Any:
+    """The manifest parts of the shards finished so far as one table sorted by frame (a
+    store still being written has no ``manifest.parquet`` yet); None if there are none."""
+    import pyarrow as pa
+
+    parts = sorted((Path(store) / MANIFEST_PARTS).glob("part-*.parquet"))
+    if not parts:
+        return None
+    return pa.concat_tables([read_manifest_table(p) for p in parts]).sort_by("frame")

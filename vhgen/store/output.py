@@ -83,7 +83,7 @@ def _short(v: Any) -> str:
 
 def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool, *,
                 height: int, width: int, frames_per_shard: int, compression_level: int,
-                raw11: bool) -> None:
+                raw11: bool, codec: str = "zstd") -> None:
     """Create the store for ``num_frames`` frames (H x W, shards of ``frames_per_shard``)
     with ``attrs``, or, when resuming an existing one (whose config the caller checked
     before any work, :func:`check_same_config`), remove the partial files a killed writer
@@ -101,6 +101,6 @@ def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool,
             create_store(out, num_frames=num_frames, height=height, width=width,
                          frames_per_shard=frames_per_shard,
                          compression_level=compression_level, attrs=attrs,
-                         overwrite=True, raw11=raw11)
+                         overwrite=True, raw11=raw11, codec=codec)
     except OSError as e:
         raise StoreError(os_error_line(e, out, "cannot create the store")) from None

@@ -38,16 +38,27 @@ MANIFEST_PARTS = "manifest"
 MANIFEST_FILE = "manifest.parquet"
 
 
-def _codecs(level: int):
-    from zarr.codecs import ZstdCodec
+CODECS = ("zstd", "lz4")
 
-    return [ZstdCodec(level=level)]
+
+def _codecs(codec: str, level: int, itemsize: int):
+    """Compressors of one frame chunk. ``zstd`` (default): zstd at ``level``, the smallest;
+    ``lz4``: blosc lz4 over bytes shuffled by ``itemsize``, about twice the size of zstd
+    3 on depth and three times faster to decode (the same values either way)."""
+    from zarr.codecs import BloscCodec, ZstdCodec
+
+    if codec == "zstd":
+        return [ZstdCodec(level=level)]
+    if codec == "lz4":
+        return [BloscCodec(cname="lz4", clevel=5, shuffle="shuffle", typesize=itemsize)]
+    raise StoreError(f"unknown codec {codec!r} (known: {', '.join(CODECS)})")
 
 
 def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
                  frames_per_shard: int, compression_level: int, attrs: dict,
-                 overwrite: bool = False, raw11: bool = False) -> None:
-    """Create the group and its empty arrays (driver only, before any worker writes)."""
+                 overwrite: bool = False, raw11: bool = False, codec: str = "zstd") -> None:
+    """Create the group and its empty arrays (driver only, before any worker writes);
+    ``codec``: see :func:`_codecs`."""
     import zarr
 
     path = Path(path)
@@ -62,7 +73,8 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
         root.create_array(name, shape=(num_frames, height, width), dtype=dtype,
                           chunks=(1, height, width),
                           shards=(frames_per_shard, height, width),
-                          compressors=_codecs(compression_level), fill_value=fill,
+                          compressors=_codecs(codec, compression_level,
+                                              np.dtype(dtype).itemsize), fill_value=fill,
                           dimension_names=("frame", "y", "x"))
     root.attrs.update({"class_names": list(SCENE_CLASSES), **attrs,
                        "vhgen_contract": CONTRACT_VERSION})

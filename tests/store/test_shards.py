@@ -1,0 +1,139 @@
+"""vhgen.store.shards: frames decoded straight from shard files equal zarr's, bit for bit;
+damaged shards raise ShardError naming store, array and shard, and the rest still reads."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from conftest import write_synthetic_store
+
+from vhgen.errors import ShardError
+from vhgen.store.shards import ShardReader, array_layout, zstd_content_size
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return write_synthetic_store(tmp_path_factory.mktemp("shards") / "s.zarr", frames=22,
+                                 frames_per_shard=4)
+
+
+@pytest.fixture(scope="module")
+def lz4_store(tmp_path_factory):
+    return write_synthetic_store(tmp_path_factory.mktemp("shards") / "lz4.zarr", frames=22,
+                                 frames_per_shard=4, codec="lz4")
+
+
+@pytest.fixture
+def damaged(store, tmp_path):
+    out = tmp_path / "damaged.zarr"
+    shutil.copytree(store, out)
+    return out
+
+
+def _zarr(store):
+    import zarr
+
+    g = zarr.open_group(str(store), mode="r")
+    return {n: g[n][:] for n in ("depth", "labels", "instances", "classes")}
+
+
+@pytest.mark.parametrize("threads", [1, 3])
+def test_frames_equal_zarr(store, threads):
+    truth = _zarr(store)
+    reader = ShardReader(store, list(truth), threads=threads)
+    assert all(reader.layouts[n] is not None for n in truth)  # the direct path, not zarr
+    frames = np.random.default_rng(threads).permutation(22)
+    for name, want in truth.items():
+        out = reader.empty(name, len(frames))
+        reader.read_into([(name, int(f), out[k]) for k, f in enumerate(frames)])
+        assert out.dtype == want.dtype and np.array_equal(out, want[frames])
+    reader.close()
+
+
+def test_lz4_store_decodes_to_the_same_arrays(store, lz4_store):
+    """output.codec lz4 (blosc, shuffled bytes) changes the files, not one value."""
+    truth = _zarr(store)
+    assert all(np.array_equal(a, truth[n]) for n, a in _zarr(lz4_store).items())
+    reader = ShardReader(lz4_store, list(truth), threads=2)
+    assert {reader.layouts[n].compressor for n in truth} == {"blosc"}  # type: ignore[union-attr]
+    frames = np.random.default_rng(0).permutation(22)
+    for name, want in truth.items():
+        out = reader.empty(name, len(frames))
+        reader.read_into([(name, int(f), out[k]) for k, f in enumerate(frames)])
+        assert out.dtype == want.dtype and np.array_equal(out, want[frames])
+    size = {s: sum(f.stat().st_size for f in (s / "depth").rglob("*")) for s in
+            (store, lz4_store)}
+    assert size[lz4_store] != size[store]  # really another codec
+
+
+def test_other_layouts_read_through_zarr(tmp_path):
+    import zarr
+
+    g = zarr.open_group(str(tmp_path / "u.zarr"), mode="w", zarr_format=3)
+    data = np.arange(5 * 6 * 7, dtype=np.uint16).reshape(5, 6, 7)
+    g.create_array("depth", shape=data.shape, dtype="uint16", chunks=(2, 6, 7))[:] = data
+    assert array_layout(tmp_path / "u.zarr", "depth") is None
+    reader = ShardReader(tmp_path / "u.zarr", ["depth"], threads=2)
+    out = reader.empty("depth", 3)
+    reader.read_into([("depth", f, out[k]) for k, f in enumerate((4, 0, 2))])
+    assert np.array_equal(out, data[[4, 0, 2]])
+
+
+def test_zstd_content_size():
+    import numcodecs.zstd
+
+    for n in (0, 10, 300, 70000, 2**20 + 3):
+        assert zstd_content_size(numcodecs.zstd.compress(b"x" * n, 3)) == n
+    assert zstd_content_size(b"not zstd at all") is None
+
+
+def test_missing_shard_file(damaged):
+    (damaged / "labels" / "c" / "2" / "0" / "0").unlink()
+    reader = ShardReader(damaged, ["depth", "labels"])
+    out = reader.empty("labels")
+    with pytest.raises(ShardError, match=r"damaged.zarr: labels shard 2 \(frames 8-11\): "
+                       r"shard file labels/c/2/0/0 missing") as e:
+        reader.read_into([("labels", 9, out)])
+    assert (e.value.array, e.value.shard, e.value.frames) == ("labels", 2, (8, 11))
+    errors: list[ShardError] = []
+    outs = reader.empty("labels", 3)
+    reader.read_into([("labels", f, outs[k]) for k, f in enumerate((1, 9, 21))], errors)
+    assert [err.shard for err in errors] == [2]
+    truth = _zarr(damaged)
+    assert np.array_equal(outs[[0, 2]], truth["labels"][[1, 21]])  # the others still read
+
+
+def test_index_checksum_and_truncation(damaged):
+    shard = damaged / "depth" / "c" / "1" / "0" / "0"
+    blob = bytearray(shard.read_bytes())
+    blob[-10] ^= 0xFF
+    shard.write_bytes(bytes(blob))
+    short = damaged / "depth" / "c" / "3" / "0" / "0"
+    short.write_bytes(short.read_bytes()[:50])
+    reader = ShardReader(damaged, ["depth"])
+    out = reader.empty("depth")
+    with pytest.raises(ShardError, match="depth shard 1 .*index checksum does not match"):
+        reader.read_into([("depth", 5, out)])
+    with pytest.raises(ShardError, match="depth shard 3 .*shorter than its index"):
+        reader.read_into([("depth", 13, out)])
+    reader.read_into([("depth", 0, out)])
+
+
+def test_damaged_chunk_spoils_only_its_frame(store, damaged):
+    # the index: (offset, nbytes) uint64 per frame, then a crc32c, at the end of the file
+    idx = np.frombuffer((store / "depth/c/0/0/0").read_bytes()[-(16 * 4 + 4):-4], "<u8")
+    offset = int(idx.reshape(4, 2)[2, 0])
+    shard = damaged / "depth" / "c" / "0" / "0" / "0"
+    blob = bytearray(shard.read_bytes())
+    blob[offset + 20:offset + 60] = bytes(40)  # inside frame 2's compressed data
+    shard.write_bytes(bytes(blob))
+    bad = ShardReader(damaged, ["depth"], threads=1)
+    out = bad.empty("depth", 4)
+    errors: list[ShardError] = []
+    bad.read_into([("depth", f, out[f]) for f in (0, 1, 3)], errors)
+    assert not errors and np.array_equal(out[[0, 1, 3]], _zarr(store)["depth"][[0, 1, 3]])
+    with pytest.raises(ShardError, match="depth shard 0 .*frame 2"):
+        bad.read_into([("depth", 2, out[2])])
+
