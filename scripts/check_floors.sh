@@ -5,7 +5,8 @@
 #     real-background job run end to end there and in .venv (the newest), read back with
 #     vhgen.dataset, and hold the same arrays bit for bit;
 #  2. each manifest opens with pyarrow alone: the floor's, the newest, and 18.1, 21 and 25
-#     (the versions a user reported failing), whichever wrote it;
+#     (the versions a user reported failing), whichever wrote it; and vhgen with each of
+#     those pyarrow versions runs every kind of job to the same arrays;
 #  3. a store of the old manifest form reads with vhgen under the floor's pyarrow.
 # Usage: bash scripts/check_floors.sh [WORKDIR]   (default: .floors, removed at the end)
 set -euo pipefail
@@ -33,6 +34,16 @@ for v in 18.1.0 21.0.0 25.0.1; do
   $uv venv -q -p "$py" "$env"
   VIRTUAL_ENV="$env" $uv pip install -q "pyarrow==$v" "numpy<2"
   "$env/bin/python" scripts/floors.py read $stores
+done
+
+# 2b. vhgen itself with those pyarrow versions (the newest of everything else): every kind
+#     of job writes, merges and reads back (pyarrow 25 could not merge a person-only job)
+for v in 18.1.0 21.0.0 25.0.1; do
+  env="$work/vhgen-pyarrow-$v"
+  $uv venv -q -p "$py" "$env"
+  VIRTUAL_ENV="$env" $uv pip install -q -e . "pyarrow==$v"
+  "$env/bin/python" scripts/floors.py jobs "$work/with-pyarrow-$v"
+  .venv/bin/python scripts/floors.py same "$work/newest" "$work/with-pyarrow-$v"
 done
 
 # 3. a store of manifest form 1 (null fixed-size lists): vhgen reads it with pyarrow 15

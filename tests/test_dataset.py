@@ -17,7 +17,7 @@ import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
-from conftest import write_synthetic_store
+from tests.conftest import write_synthetic_store
 
 import vhgen.dataset as vd
 from vhgen.errors import ShardError, StoreError
