@@ -17,9 +17,9 @@ import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
-from tests.conftest import write_synthetic_store
 
 import vhgen.dataset as vd
+from tests.conftest import write_synthetic_store
 from vhgen.errors import ShardError, StoreError
 
 slow = pytest.mark.slow

@@ -7,8 +7,8 @@ import shutil
 
 import numpy as np
 import pytest
-from tests.conftest import write_synthetic_store
 
+from tests.conftest import write_synthetic_store
 from vhgen.errors import ShardError
 from vhgen.store.shards import ShardReader, array_layout, zstd_content_size
 
