@@ -54,7 +54,8 @@ def _params(args: argparse.Namespace) -> Any:
                        min_samples=args.min_samples, min_gain=args.min_gain,
                        max_offset=args.max_offset, threshold_range=args.threshold_range,
                        hist_budget_mb=args.hist_budget_mb,
-                       background_share=args.background_share)
+                       background_share=args.background_share,
+                       segmented=args.segmented)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -67,6 +68,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     forest = train_forest(args.stores, params, max_frames=args.max_frames,
                           workers=args.workers, address=args.address,
                           executor=args.executor, progress=None if args.quiet else _progress)
+    if args.person_frames:
+        _add_person_stage(forest, args.stores, args.person_frames, args.seed, args.quiet)
     path = forest.save(args.out)
     nodes = [t["nodes"] for t in forest.meta["trees"]]
     print(f"wrote {path}: {forest.num_trees} trees ({', '.join(map(str, nodes))} nodes), "
@@ -104,7 +107,8 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
     for f in frames:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
-    label = labeller(forest, args.segment, args.fx, args.min_body_fraction)
+    label = labeller(forest, args.segment, args.fx, args.min_body_fraction,
+                     load_parts(args.parts))
     res = evaluate_real(label, frames, out_dir=args.out, colors=forest.meta.get("label_colors"),
                         num_classes=forest.num_classes)
     res["segment"] = bool(args.segment)
@@ -128,16 +132,17 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
                           f"was trained on {forest.meta.get('label_scheme')!r} "
                           f"({len(names)} parts)")
     check_focal(forest, ref.fx, ref.path)
-    mask, called_by = None, "forest labels > 0"
+    mask, how = None, "forest labels > 0"
+    parts = load_parts(args.parts)
     if args.segment:
-        seg = segmenter(args.min_body_fraction)
-        called_by = f"--segment (min_body_fraction {seg.min_body_fraction:g})"
+        lab = labeller(forest, True, None, args.min_body_fraction, parts)
+        how = called_by(forest, args.min_body_fraction, parts)
 
         def mask(depth: Any, labels: Any, info: Any) -> Any:
-            return seg.apply(depth, info.intrinsics, labels) > 0
+            return lab.people(depth, info.intrinsics, labels)[1] > 0
 
     res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out,
-                   person_mask=mask, called_by=called_by)
+                   person_mask=mask, called_by=how, parts=parts)
     print(table(res))
     print(persons_table(res["people"]))
     if res["frames_per_second"]:
@@ -183,24 +188,74 @@ def segmenter(min_body_fraction: float | None = None) -> Any:
             else Segmenter(min_body_fraction=min_body_fraction))
 
 
-def labeller(forest: Any, segment: bool, fx: float | None = None,
-              min_body_fraction: float | None = None) -> Any:
-    """frame -> (H, W) uint8 labels: the forest, then (``segment``) the segmentation
-    stage of :mod:`vhgen.forest.segment` (``min_body_fraction``: its default if None)."""
-    import numpy as np
+def person_stage_of(forest: Any, min_body_fraction: float | None) -> Any:
+    """The forest's trained person stage, unless ``--min-body-fraction`` asks for the
+    forest's vote (or it has none)."""
+    return None if min_body_fraction is not None else getattr(forest, "person_stage", None)
 
-    from vhgen.forest.trees import Predictor
 
-    predictor = Predictor(forest)
+def called_by(forest: Any, min_body_fraction: float | None, parts: Any = None) -> str:
+    """How ``--segment`` decides who is a person, for the reports."""
     seg = segmenter(min_body_fraction)
+    how = ("the forest's person stage" if person_stage_of(forest, min_body_fraction)
+           is not None else f"min_body_fraction {seg.min_body_fraction:g}")
+    return f"--segment ({how}{', parts by --parts' if parts is not None else ''})"
 
-    def label(frame: Any) -> Any:
-        labels = predictor.predict(np.asarray(frame.depth_mm))
-        if segment:
-            labels = seg.apply(frame.depth_mm, frame_intrinsics(frame, forest, fx), labels)
-        return labels
 
-    return label
+def load_parts(path: str | None) -> Any:
+    """The ``--parts`` forest (trained --segmented), or None."""
+    if path is None:
+        return None
+    from vhgen.forest.trees import Forest
+
+    parts = Forest.load(path)
+    if not parts.meta.get("params", {}).get("segmented"):
+        raise ForestError(f"--parts {path}: not a --segmented forest (it labels the pixels "
+                          "the person stage keeps; train it with forest train --segmented)")
+    return parts
+
+
+class Labeller:
+    """frame -> labels (and person instances): the forest, then (``segment``) the
+    segmentation stage of :mod:`vhgen.forest.segment` deciding with the forest's person
+    stage, or with its vote at ``min_body_fraction``; with ``parts`` (a forest trained
+    --segmented) the people's parts are that forest's on the people alone."""
+
+    def __init__(self, forest: Any, segment: bool, fx: float | None = None,
+                 min_body_fraction: float | None = None, parts: Any = None):
+        from vhgen.forest.trees import Predictor
+
+        if parts is not None and not segment:
+            raise ForestError("--parts: needs --segment (it labels the people the "
+                              "segmentation stage finds)")
+        self.forest, self.segment, self.fx = forest, segment, fx
+        self.predictor = Predictor(forest)
+        self.parts = Predictor(parts) if parts is not None else None
+        self.seg = segmenter(min_body_fraction)
+        self.stage = person_stage_of(forest, min_body_fraction)
+
+    def people(self, depth_mm: Any, intr: Any, labels: Any = None) -> tuple[Any, Any]:
+        """(labels (H, W) uint8 after every stage, instances (H, W) uint8 or None)."""
+        import numpy as np
+
+        depth = np.asarray(depth_mm)
+        if labels is None:
+            labels = self.predictor.predict(depth)
+        if not self.segment:
+            return labels, None
+        inst = self.seg.instances(depth, intr, labels, self.stage)
+        if self.parts is not None:
+            return self.parts.predict(np.where(inst > 0, depth, 0)), inst
+        return self.seg.apply(depth, intr, labels, self.stage, people=inst), inst
+
+    def __call__(self, frame: Any) -> Any:
+        return self.people(frame.depth_mm, frame_intrinsics(frame, self.forest, self.fx))[0]
+
+
+def labeller(forest: Any, segment: bool, fx: float | None = None,
+             min_body_fraction: float | None = None, parts: Any = None) -> Labeller:
+    """frame -> (H, W) uint8 labels (see :class:`Labeller`)."""
+    return Labeller(forest, segment, fx, min_body_fraction, parts)
 
 
 def _cmd_label(args: argparse.Namespace) -> int:
@@ -216,11 +271,9 @@ def _cmd_label(args: argparse.Namespace) -> int:
     if args.instances and not args.segment:
         raise ConfigError(None, "--instances", "needs --segment (the people are the "
                           "segmentation stage's)")
-    seg = segmenter(args.min_body_fraction)
-    labels = labeller(forest, args.segment, fx, args.min_body_fraction)(frame)
+    lab = labeller(forest, args.segment, fx, args.min_body_fraction, load_parts(args.parts))
+    labels, inst = lab.people(frame.depth_mm, frame_intrinsics(frame, forest, fx))
     if args.instances:
-        intr = frame_intrinsics(frame, forest, fx)
-        inst = seg.instances(frame.depth_mm, intr, labels)
         ipath = Path(args.instances)
         ipath.parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(inst, mode="L").save(ipath)
@@ -234,6 +287,31 @@ def _cmd_label(args: argparse.Namespace) -> int:
     img.save(out)
     print(f"wrote {out}: {labels.shape[1]}x{labels.shape[0]} labels (pixel value = class, "
           f"0 = background), {int((labels > 0).sum())} body pixels")
+    return 0
+
+
+def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
+                      quiet: bool) -> None:
+    from vhgen.forest.from_stores import train_person_stage
+
+    if forest.meta.get("params", {}).get("segmented"):
+        raise ForestError("--person-frames: a --segmented forest sees only people; train "
+                          "the person stage with the forest that finds them")
+    stage = train_person_stage(forest, stores, frames=frames, seed=seed,
+                               progress=None if quiet else _progress)
+    forest.person_stage = stage
+    forest.meta["person_stage"] = {"stores": [str(Path(s).resolve()) for s in stores],
+                                   "frames": frames, "seed": seed, "trees": len(stage.roots)}
+
+
+def _cmd_person_stage(args: argparse.Namespace) -> int:
+    from vhgen.forest.trees import Forest
+
+    forest = Forest.load(args.forest)
+    _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet)
+    path = forest.save(args.out or args.forest)
+    print(f"wrote {path}: the forest with a person stage of "
+          f"{forest.meta['person_stage']['trees']} trees from {args.frames} frames")
     return 0
 
 
@@ -251,9 +329,14 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def _body_fraction_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--min-body-fraction", type=A.float_range(0, 1),
-                   help="--segment: a cluster is a person when the forest calls at least "
-                        "this share of it a body part (default 0.5, chosen for forests "
-                        "trained with --background-share 0.5; 0.8 for forests without)")
+                   help="--segment: decide by the forest's vote instead of its person stage "
+                        "(forest train --person-frames): a cluster is a person when the "
+                        "forest calls at least this share of it a body part (0.5 for forests "
+                        "trained with --background-share 0.5; 0.8 for forests without; the "
+                        "default for a forest without a person stage is 0.5)")
+    p.add_argument("--parts", type=A.existing_file(".npz"),
+                   help="--segment: the people's parts from this forest (trained "
+                        "--segmented) on the people alone")
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -298,8 +381,31 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="existing Ray cluster (e.g. auto or ray://host:10001)")
     t.add_argument("--hist-budget-mb", type=A.int_range(1), default=256,
                    help="histogram memory per chunk of nodes and worker (default 256)")
+    t.add_argument("--segmented", action="store_true",
+                   help="the parts of segmented people (Shotton's setting): every pixel "
+                        "that is not a person reads as no measurement; label with it "
+                        "through --segment --parts")
+    t.add_argument("--person-frames", type=A.int_range(0), default=0,
+                   help="then train the segmentation stage's person stage on the candidates "
+                        "of this many frames the forest did not train on (default 0: none; "
+                        "forest person-stage adds one later)")
     t.add_argument("--quiet", action="store_true", help="no per-level progress")
     t.set_defaults(func=_cmd_train)
+
+    ps = fsub.add_parser("person-stage", help="train the segmentation stage's person "
+                                              "decision for a forest and store it in its file")
+    ps.add_argument("forest", type=A.existing_file(".npz"), help="forest .npz")
+    ps.add_argument("stores", nargs="+", type=A.text("store"),
+                    help="stores whose frames give the candidates (frames the forest trained "
+                         "on are left out)")
+    ps.add_argument("--frames", type=A.int_range(1), default=400,
+                    help="frames to take candidates from (default 400)")
+    ps.add_argument("--seed", type=A.int_range(0, 2**63 - 1), default=0,
+                    help="seed of the frames and the trees")
+    ps.add_argument("--out", type=A.output_path(".npz"),
+                    help="write the forest with its stage here (default: in place)")
+    ps.add_argument("--quiet", action="store_true", help="no progress")
+    ps.set_defaults(func=_cmd_person_stage)
 
     e = fsub.add_parser("eval", help="accuracy of a forest on labelled stores and on real "
                                      "frames (person/background)")

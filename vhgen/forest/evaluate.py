@@ -58,18 +58,23 @@ def scores(conf: np.ndarray, names: list[str]) -> dict:
 def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None = None,
              seed: int = 0, batch: int = 32, out_dir: str | Path | None = None,
              sheet_frames: int = 4, person_mask: PersonMask | None = None,
-             called_by: str = "forest labels > 0") -> dict:
+             called_by: str = "forest labels > 0", parts: Forest | None = None) -> dict:
     """Label every selected frame and score it; ``out_dir`` gets confusion.png and
     contact_sheet.png. Returns the scores plus frames, seconds, fps and the matrix, and
     under ``people`` the person scores of :mod:`vhgen.forest.persons` on ``person_mask``
     (default: the forest's labels > 0; ``called_by`` names it in the output). The part
-    scores are always the forest's own labels."""
+    scores are the forest's own labels, or those of ``parts``; a forest trained
+    ``--segmented`` labels the true people alone (the depth of every other pixel
+    removed: Shotton et al.'s test of the parts of segmented people)."""
     names = list(forest.meta["label_names"])
     by_path = {i.path: i for i in infos}
     people = PeopleScore(called_by=called_by)
     c = forest.num_classes
     frames = select_frames(infos, max_frames, seed)
     pred_fn = Predictor(forest)
+    part_forest = parts if parts is not None else forest
+    part_fn = Predictor(parts) if parts is not None else pred_fn
+    on_people = bool(part_forest.meta.get("params", {}).get("segmented"))
     conf = np.zeros((c, c), np.int64)
     shown: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []
     show_ids = set(np.linspace(0, len(frames) - 1, min(sheet_frames, len(frames)))
@@ -86,7 +91,9 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
         t0 = time.perf_counter()
         pred = pred_fn.predict(depth)
         seconds += time.perf_counter() - t0
-        conf += confusion(pred, labels, depth, c)
+        part_pred = (part_fn.predict(np.where(labels > 0, depth, 0)) if on_people
+                     else pred if parts is None else part_fn.predict(depth))
+        conf += confusion(part_pred, labels, depth, c)
         inst, has = read_instances(part, labels)
         for i, (path, f, _) in enumerate(part):
             called = (pred[i] > 0 if person_mask is None
@@ -95,12 +102,13 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
                        (path, f), bool(has[i]))
         for i in range(len(part)):
             if s + i in show_ids:
-                shown.append((depth[i], labels[i], pred[i], part[i][2]))
+                shown.append((depth[i], labels[i], part_pred[i], part[i][2]))
         log.info("evaluated %d/%d frames", min(s + batch, len(frames)), len(frames))
     res = scores(conf, names)
     res.update({"frames": len(frames), "predict_seconds": round(seconds, 3),
                 "frames_per_second": round(len(frames) / seconds, 2) if seconds else None,
                 "confusion": conf.tolist(), "label_names": names,
+                "parts_on": "the true people alone" if on_people else "whole frames",
                 "people": people.result()})
     if out_dir is not None:
         out = Path(out_dir)

@@ -16,10 +16,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from vhgen.errors import ForestError
 from vhgen.executor import InlinePool
 from vhgen.executor.choice import choose_executor
 from vhgen.forest.data import check_compatible, read_frames, select_frames, store_info
+from vhgen.forest.person_stage import PersonStage
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
 from vhgen.forest.trees import Forest
 
@@ -99,3 +102,69 @@ def train_forest(stores: list[str], params: TrainParams, *, max_frames: int | No
     forest.meta["workers"] = n if workers is not None or address is not None or \
         executor == "ray" else 0
     return forest
+
+
+def person_stage_frames(forest: Forest, stores: list[str], count: int,
+                        seed: int) -> list[tuple[str, int, int]]:
+    """``count`` frames of ``stores`` (seeded) that the part forest did not train on: when
+    ``stores`` are the forest's own training stores, the frames its selection left out."""
+    infos = [store_info(s) for s in stores]
+    check_compatible(infos)
+    every = select_frames(infos, None, 0)
+    used: set[int] = set()
+    own = [str(Path(s).resolve()) for s in stores]
+    if own == list(forest.meta.get("stores") or []):
+        params = forest.meta.get("params") or {}
+        used = {g for _, _, g in select_frames(infos, int(forest.meta.get("frames", 0)),
+                                               int(params.get("seed", 0)))}
+    rest = [t for t in every if t[2] not in used]
+    if not rest:
+        raise ForestError(f"{stores[0]}: every frame of these stores trained the part forest; "
+                          "the person stage needs others (train it with --max-frames, or "
+                          "give other stores)")
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9E0913]))
+    pick = np.sort(rng.permutation(len(rest))[:count])
+    return [rest[i] for i in pick]
+
+
+def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
+                       trees: int = 50, seed: int = 0,
+                       progress: Callable[[str], None] | None = None) -> PersonStage:
+    """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
+    ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
+    forest did not train on, with the forest's labels, each a person when most of its
+    pixels are a person's in the store's labels."""
+    from vhgen.forest.segment import FEATURES, Segmenter
+    from vhgen.forest.trees import Predictor
+
+    chosen = person_stage_frames(forest, stores, frames, seed)
+    infos = {s: store_info(s) for s in {p for p, _, _ in chosen}}
+    predictor = Predictor(forest)
+    seg = Segmenter()
+    xs, ys = [], []
+    t0 = time.perf_counter()
+    for s in range(0, len(chosen), 16):
+        part = chosen[s:s + 16]
+        depth, truth = read_frames(part)
+        labels = predictor.predict(depth)
+        for i, (path, _, _) in enumerate(part):
+            comp, x = seg.features(depth[i], infos[path].intrinsics, labels[i])
+            n = len(x)
+            size = np.bincount(comp.reshape(-1), minlength=n)
+            person = np.bincount(comp.reshape(-1), weights=(truth[i] > 0).reshape(-1),
+                                 minlength=n)
+            ok = ~np.isnan(x).any(1)
+            xs.append(x[ok])
+            ys.append(person[ok] >= 0.5 * size[ok])
+        if progress is not None:
+            progress(f"person stage: candidates of {min(s + 16, len(chosen))}/{len(chosen)} "
+                     "frames")
+    x_all, y_all = np.concatenate(xs), np.concatenate(ys)
+    if y_all.all() or not y_all.any():
+        raise ForestError(f"{stores[0]}: the person stage needs candidates that are people "
+                          f"and candidates that are not; {len(chosen)} frames gave "
+                          f"{int(y_all.sum())} people among {len(y_all)} candidates")
+    stage = PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed)
+    log.info("person stage: %d candidates (%d people) of %d frames, %.1f s", len(y_all),
+             int(y_all.sum()), len(chosen), time.perf_counter() - t0)
+    return stage

@@ -55,6 +55,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from vhgen.camera import Intrinsics, backproject
+from vhgen.forest.person_stage import PersonStage
+
+# what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
+FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
+            "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
+            "in_front", "at_image_edge", "body", "coherence", "parts")
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """A frame's person candidates (steps 1-2b): ``comp`` (H, W) int32 candidate ids (0 =
+    none), ``count`` of them, the back-projected ``points`` (H, W, 3) float64 m, ``keep``
+    (H, W) bool (valid and off the background planes) and the ``floor`` (unit normal up,
+    offset; None when none was found)."""
+
+    comp: np.ndarray
+    count: int
+    points: np.ndarray
+    keep: np.ndarray
+    floor: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -92,6 +112,9 @@ class Segmenter:
     min_body_fraction: float = 0.5
     min_coherence: float = 0.0
     min_parts: int = 0
+    # with a trained person stage (vhgen.forest.person_stage): its probability a candidate
+    # is a person, classes weighted to equal total (not fitted: the even odds)
+    min_person_prob: float = 0.5
     seed: int = 0
 
     def planes(self, points: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -172,15 +195,9 @@ class Segmenter:
         out[nodes] = comp + 1
         return out.reshape(h, w), int(n)
 
-    def cluster_table(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
-                      ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Steps 1-2 and what step 3 decides on: the cluster image (H, W) int32 (0 = no
-        cluster) and, per cluster id (index 0 unused), ``pixels``, ``body`` (the share the
-        forest calls a body part), ``coherence`` (the share of neighbouring pairs of body
-        pixels, right and below, that have the same part: whole parts, not confetti),
-        ``parts`` (parts with at least 5% of its body pixels) and ``extent_m``."""
+    def candidates(self, depth_mm: np.ndarray, intr: Intrinsics) -> Candidates:
+        """Steps 1, 2 and 2b: the person candidates of a frame (no forest involved)."""
         depth = np.asarray(depth_mm)
-        labels = np.asarray(labels)
         valid = depth > 0
         z = depth.astype(np.float64) / 1000.0
         points = backproject(intr, z)
@@ -189,6 +206,23 @@ class Segmenter:
         comp, n = self.clusters(z, keep)
         if self.split:
             comp, n = self.split_people(comp, n, points, floor)
+        return Candidates(comp, n, points, keep, floor)
+
+    def cluster_table(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
+                      ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Steps 1-2 and what step 3 decides on: the cluster image (H, W) int32 (0 = no
+        cluster) and, per cluster id (index 0 unused), ``pixels``, ``body`` (the share the
+        forest calls a body part), ``coherence`` (the share of neighbouring pairs of body
+        pixels, right and below, that have the same part: whole parts, not confetti),
+        ``parts`` (parts with at least 5% of its body pixels) and ``extent_m``."""
+        labels = np.asarray(labels)
+        cand = self.candidates(depth_mm, intr)
+        return cand.comp, self.table_of(cand.comp, cand.count, cand.points, labels,
+                                        cand.keep)
+
+    def table_of(self, comp: np.ndarray, n: int, points: np.ndarray, labels: np.ndarray,
+                 keep: np.ndarray) -> dict[str, np.ndarray]:
+        """The table of :meth:`cluster_table` for candidates ``comp`` (of :meth:`candidates`)."""
         flat = comp.reshape(-1)
         body = (labels > 0) & keep
         size = np.bincount(flat, minlength=n + 1).astype(np.float64)
@@ -209,10 +243,79 @@ class Segmenter:
             if counts.sum():
                 parts[c] = int((counts[1:] >= 0.05 * counts.sum()).sum())
             extent[c] = _longest_extent(points[m])
-        table = {"pixels": size, "body": called / np.maximum(size, 1),
-                 "coherence": same / np.maximum(pairs, 1), "parts": parts,
-                 "extent_m": extent}
-        return comp, table
+        return {"pixels": size, "body": called / np.maximum(size, 1),
+                "coherence": same / np.maximum(pairs, 1), "parts": parts,
+                "extent_m": extent}
+
+    def features(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The candidates of a frame and what the person stage decides on: (H, W) int32
+        candidate ids (0 = none) and (n + 1, len(FEATURES)) float64 (row 0 and the rows of
+        candidates below ``min_pixels`` are NaN: never a person). Heights are above the
+        floor (without one: ``top_m`` is the candidate's height and ``bottom_m`` 0), widths
+        are 5th-95th percentile spreads on the floor: overall, of the points within 0.2 m
+        of the top (a head) and 0.2-0.5 m below it (shoulders); ``area_m2`` is the log of
+        the surface seen; ``fill`` that surface over height times width; ``in_front`` the
+        share of the outline whose outside is farther by a depth step or unmeasured;
+        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`."""
+        from scipy import ndimage
+
+        depth = np.asarray(depth_mm)
+        cand = self.candidates(depth, intr)
+        comp, points = cand.comp, cand.points
+        table = self.table_of(comp, cand.count, points, np.asarray(labels), cand.keep)
+        out = np.full((cand.count + 1, len(FEATURES)), np.nan)
+        valid = depth > 0
+        h_img, w_img = depth.shape
+        on_floor = cand.floor is not None
+        up, off = ((cand.floor[:3], float(cand.floor[3])) if cand.floor is not None
+                   else (np.array([0.0, -1.0, 0.0]), 0.0))
+        basis = _plane_basis(up)
+        pixel_m2 = 1.0 / (intr.fx * intr.fy)
+        for c, sl in enumerate(ndimage.find_objects(comp), start=1):
+            if sl is None or table["pixels"][c] < self.min_pixels:
+                continue
+            m = comp[sl] == c
+            p = points[sl][m]
+            z = p[:, 2]
+            h = p @ up - off
+            lo, hi = np.percentile(h, [2, 98])
+            height = hi - lo
+            q = p @ basis.T
+            width = _spread(q).max()
+            area = float((z * z).sum() * pixel_m2)
+            head = h > hi - 0.2
+            shoulders = (h > hi - 0.5) & ~head
+            inside = np.zeros(comp.shape, bool)
+            inside[sl] = m
+            ys, xs = sl
+            out[c] = (float(np.median(z)), np.log(max(area, 1e-6)), float(on_floor),
+                      hi if on_floor else height, lo if on_floor else 0.0, height, width,
+                      float(np.percentile(z, 95) - np.percentile(z, 5)),
+                      _spread(q[head]).max() if head.sum() >= 3 else 0.0,
+                      _spread(q[shoulders]).max() if shoulders.sum() >= 3 else 0.0,
+                      area / max(height * width, 1e-6),
+                      _in_front_share(inside, valid, points[..., 2], self.jump_m),
+                      float(ys.start == 0 or xs.start == 0 or ys.stop == h_img
+                            or xs.stop == w_img),
+                      table["body"][c], table["coherence"][c], float(table["parts"][c]))
+        return comp, out
+
+    def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
+               stage: PersonStage | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Step 3: the candidates (H, W) int32 and (n + 1,) bool, which are people: by
+        the person ``stage`` when given (its probability at least ``min_person_prob``),
+        else by the forest's vote (:meth:`is_person`). Index 0 is False."""
+        if stage is None:
+            comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
+            return comp, self.is_person(table)
+        if stage.features != FEATURES:
+            raise ValueError(f"person stage features {stage.features} are not this "
+                             f"version's {FEATURES}")
+        comp, x = self.features(depth_mm, intr, labels)
+        ok = stage.predict_proba(x) >= self.min_person_prob
+        ok[0] = False
+        return comp, ok
 
     def split_people(self, comp: np.ndarray, n: int, points: np.ndarray,
                      floor: np.ndarray | None) -> tuple[np.ndarray, int]:
@@ -295,17 +398,18 @@ class Segmenter:
             heads.append(q[near].mean(0) if near.any() else top_q)
         return np.array(heads, np.float64).reshape(-1, 2)
 
-    def instances(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
-                  ) -> np.ndarray:
+    def instances(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
+                  stage: PersonStage | None = None) -> np.ndarray:
         """(H, W) uint8: 0 = no person, k = the k-th person kept (numbered left to right
-        by their mean column; at most 255)."""
-        comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
-        ok = np.flatnonzero(self.is_person(table))
+        by their mean column; at most 255); ``stage`` as in :meth:`people`."""
+        comp, person = self.people(depth_mm, intr, labels, stage)
+        ok = np.flatnonzero(person)
+        n = len(person)
+        pixels = np.bincount(comp.reshape(-1), minlength=n)
         cols = np.bincount(comp.reshape(-1), weights=np.tile(np.arange(comp.shape[1]),
-                                                              comp.shape[0]),
-                           minlength=len(table["pixels"]))
-        centre = cols[ok] / np.maximum(table["pixels"][ok], 1)
-        lut = np.zeros(len(table["pixels"]), np.uint8)
+                                                              comp.shape[0]), minlength=n)
+        centre = cols[ok] / np.maximum(pixels[ok], 1)
+        lut = np.zeros(n, np.uint8)
         lut[ok[np.argsort(centre, kind="stable")][:255]] = np.arange(1, min(len(ok), 255) + 1)
         return lut[comp]
 
@@ -319,14 +423,20 @@ class Segmenter:
         ok[0] = False
         return ok
 
-    def apply(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
+    def apply(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
+              stage: PersonStage | None = None, people: np.ndarray | None = None
               ) -> np.ndarray:
-        """The forest's ``labels`` (H, W) uint8 of the frame ``depth_mm`` after the stage."""
+        """The forest's ``labels`` (H, W) uint8 of the frame ``depth_mm`` after the stage
+        (``stage`` as in :meth:`people`; ``people``: its :meth:`instances` when already
+        computed)."""
         from scipy import ndimage
 
         labels = np.asarray(labels)
-        comp, table = self.cluster_table(depth_mm, intr, labels)
-        mask = self.is_person(table)[comp]
+        if people is None:
+            comp, person = self.people(depth_mm, intr, labels, stage)
+            mask = person[comp]
+        else:
+            mask = np.asarray(people) > 0
         out = np.where(mask, labels, 0).astype(np.uint8)
         holes = mask & (out == 0)
         if holes.any() and (out > 0).any():
@@ -362,6 +472,23 @@ def _occluding_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
         out_a = b & ~a & va
         far += int((out_b & (zb - za > jump_m * za)).sum())
         far += int((out_a & (za - zb > jump_m * zb)).sum())
+        total += int(out_b.sum() + out_a.sum())
+    return far / total if total else 0.0
+
+
+def _in_front_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
+                    jump_m: float) -> float:
+    """Of the 4-neighbour pairs across the border of ``mask``, the share whose outside
+    pixel is farther by more than a depth step (``jump_m`` at 1 m, times z) or has no
+    measurement."""
+    far = total = 0
+    for a, b, za, zb, va, vb in ((mask[:, :-1], mask[:, 1:], z[:, :-1], z[:, 1:],
+                                  valid[:, :-1], valid[:, 1:]),
+                                 (mask[:-1], mask[1:], z[:-1], z[1:], valid[:-1], valid[1:])):
+        out_b = a & ~b
+        out_a = b & ~a
+        far += int((out_b & (~vb | (zb - za > jump_m * za))).sum())
+        far += int((out_a & (~va | (za - zb > jump_m * zb))).sum())
         total += int(out_b.sum() + out_a.sum())
     return far / total if total else 0.0
 

@@ -58,6 +58,10 @@ class TrainParams:
     # share of each image's samples drawn from the background (class 0); 0: background is
     # one class among those present, like every part (Shotton's balance)
     background_share: float = 0.0
+    # Shotton's setting: the parts of segmented people. Every pixel that is not a person
+    # (label 0) reads as no measurement (BACKGROUND_MM) and no sample is drawn there; such
+    # a forest labels the pixels a person stage kept (vhgen.forest.segment), nothing else
+    segmented: bool = False
 
     def check(self) -> None:
         """Raise ForestError naming the flag of the first bad value."""
@@ -76,6 +80,9 @@ class TrainParams:
         if not 0.0 <= self.background_share < 1.0:
             raise ForestError(f"--background-share {self.background_share}: must be in "
                               "[0, 1)")
+        if self.segmented and self.background_share > 0:
+            raise ForestError(f"--background-share {self.background_share}: a --segmented "
+                              "forest sees no background")
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -243,8 +250,9 @@ class ImageShard:
 
     def __init__(self, depth: np.ndarray, labels: np.ndarray, global_ids: Sequence[int],
                  params: TrainParams):
-        self.depth = prepare_depth(depth)
         self.labels = np.ascontiguousarray(labels, dtype=np.uint8)
+        self.depth = prepare_depth(np.where(self.labels > 0, depth, 0) if params.segmented
+                                   else depth)
         self.ids = np.asarray(global_ids, dtype=np.int64)
         self.params = params
         self.num_classes = 0
@@ -461,4 +469,5 @@ def grow_forest(pool: ShardPool, num_classes: int, params: TrainParams, meta: di
                            "depth": int(arrays["depth"].max()), "levels": stats})
     cat = {k: np.concatenate([a[k] for a in parts]) for k in parts[0]}
     meta = {**meta, "params": asdict(params), "trees": tree_stats}
-    return Forest(roots=np.asarray(roots, np.int64), meta=meta, **cat)
+    return Forest(cat["offsets"], cat["thresh"], cat["left"], cat["depth"], cat["counts"],
+                  np.asarray(roots, np.int64), meta)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
@@ -22,9 +23,11 @@ import numpy as np
 from vhgen.errors import ForestError
 from vhgen.forest.features import BACKGROUND_MM, FOCAL_SCALE, prepare_depth
 from vhgen.forest.kernel import MAX_SIDE, pack_forest, predict_batch, predict_frame
+from vhgen.forest.person_stage import PersonStage
 
 FORMAT = "vhgen-forest"
 FORMAT_VERSION = 1
+PERSON_STAGE = "person_stage_"
 
 
 @dataclass
@@ -42,6 +45,9 @@ class Forest:
     counts: np.ndarray  # (N, C) int64
     roots: np.ndarray  # (T,) int64
     meta: dict = field(default_factory=dict)
+    # the segmentation stage's person decision (vhgen.forest.person_stage.PersonStage),
+    # when trained: arrays under PERSON_STAGE in the file
+    person_stage: PersonStage | None = None
 
     @property
     def num_trees(self) -> int:
@@ -72,9 +78,13 @@ class Forest:
                 path.with_suffix(".npz")
         path.parent.mkdir(parents=True, exist_ok=True)
         meta = {"format": FORMAT, "format_version": FORMAT_VERSION, **self.meta}
-        np.savez_compressed(path, offsets=self.offsets, thresh=self.thresh, left=self.left,
-                            depth=self.depth, counts=self.counts, roots=self.roots,
-                            meta=np.array(json.dumps(meta)))
+        arrays: dict[str, Any] = {
+            "offsets": self.offsets, "thresh": self.thresh, "left": self.left,
+            "depth": self.depth, "counts": self.counts, "roots": self.roots,
+            "meta": np.array(json.dumps(meta))}
+        if self.person_stage is not None:
+            arrays.update(self.person_stage.to_arrays(PERSON_STAGE))
+        np.savez_compressed(path, **arrays)
         return path
 
     @classmethod
@@ -88,11 +98,18 @@ class Forest:
                 meta = json.loads(str(z["meta"]))
                 arrays = {k: z[k] for k in ("offsets", "thresh", "left", "depth", "counts",
                                             "roots")}
+                stage = {k: z[k] for k in z.files if k.startswith(PERSON_STAGE)}
         except (OSError, ValueError, KeyError) as e:
             raise ForestError(f"{path}: not a vhgen forest file ({e})") from None
         if meta.get("format") != FORMAT:
             raise ForestError(f"{path}: not a vhgen forest file (format {meta.get('format')!r})")
-        return cls(meta=meta, **arrays)
+        person_stage = None
+        if stage:
+            try:
+                person_stage = PersonStage.from_arrays(stage, PERSON_STAGE)
+            except (KeyError, ValueError) as e:
+                raise ForestError(f"{path}: its person stage cannot be read ({e})") from None
+        return cls(meta=meta, person_stage=person_stage, **arrays)
 
 
 @numba.njit(cache=True)
@@ -171,7 +188,7 @@ def truncate(forest: Forest, depth: int) -> Forest:
     (up to the min-gain/min-samples stops, which do not depend on the limit)."""
     left = np.where(forest.depth >= depth, -1, forest.left).astype(np.int32)
     return Forest(forest.offsets, forest.thresh, left, forest.depth, forest.counts,
-                  forest.roots, {**forest.meta, "truncated_depth": depth})
+                  forest.roots, {**forest.meta, "truncated_depth": depth}, forest.person_stage)
 
 
 def first_trees(forest: Forest, k: int) -> Forest:
@@ -179,4 +196,4 @@ def first_trees(forest: Forest, k: int) -> Forest:
     end = forest.tree_slice(k - 1).stop
     return Forest(forest.offsets[:end], forest.thresh[:end], forest.left[:end],
                   forest.depth[:end], forest.counts[:end], forest.roots[:k],
-                  {**forest.meta, "trees_used": k})
+                  {**forest.meta, "trees_used": k}, forest.person_stage)

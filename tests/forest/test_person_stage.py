@@ -1,0 +1,208 @@
+"""The segmentation stage's trained person decision (vhgen.forest.person_stage) and the
+parts forest of segmented people (forest train --segmented, --parts): synthetic rooms
+with a known answer, where the forest's vote alone cannot tell people from furniture."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.forest.conftest import write_store
+from vhgen.camera import Intrinsics, pixel_rays
+from vhgen.cli import main
+from vhgen.forest.person_stage import PersonStage
+from vhgen.forest.segment import FEATURES, Segmenter
+from vhgen.forest.trees import Forest
+
+INTR = Intrinsics(160, 120, 131.25, 131.25, 79.5, 59.5)
+SMALL = ["--trees", "2", "--depth", "6", "--pixels-per-image", "200", "--features", "40",
+         "--thresholds", "8", "--max-offset", "40", "--min-samples", "4", "--quiet"]
+
+
+def room(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A camera 1.3 m above a floor, level, a wall 6 m away; 1-3 'people' (a body 0.45 m
+    wide, legs, a 0.2 m head up to 1.6-1.9 m) and 1-2 'cabinets' (0.6-1.2 m wide, 0.5-1.0 m
+    tall) 2-4.5 m away, apart. Returns depth mm, labels (people: part 4 on their bodies,
+    part 11 on their heads; cabinets 0) and the person index (0 = none)."""
+    rng = np.random.default_rng(seed)
+    rays = pixel_rays(INTR)
+    h, w = INTR.height, INTR.width
+    y = rays[..., 1]
+    depth = np.minimum(np.full((h, w), 6.0),
+                       np.where(y > 1e-9, 1.3 / np.maximum(y, 1e-9), np.inf))
+    labels = np.zeros((h, w), np.uint8)
+    who = np.zeros((h, w), np.int64)
+
+    def slab(xa, xb, lo, hi, z, label, k):
+        x, up = rays[..., 0] * z, 1.3 - rays[..., 1] * z
+        hit = (x >= xa) & (x <= xb) & (up >= lo) & (up <= hi) & (z < depth)
+        depth[hit] = z
+        labels[hit] = label
+        who[hit] = k
+
+    slots = rng.permutation(np.linspace(-2.0, 2.0, 6))
+    people = int(rng.integers(1, 4))
+    for k, centre in enumerate(slots[:people] * 0.9, start=1):
+        z = rng.uniform(2.0, 4.5)
+        x = centre * z / 4.5
+        top = rng.uniform(1.6, 1.9)
+        slab(x - 0.18, x + 0.18, 0.0, top - 0.75, z + 0.06, 4, k)  # legs
+        slab(x - 0.225, x + 0.225, top - 0.75, top - 0.22, z, 4, k)  # the body
+        slab(x - 0.1, x + 0.1, top - 0.22, top, z - 0.03, 11, k)  # head
+    for centre in slots[people:people + int(rng.integers(1, 3))]:
+        z = rng.uniform(2.0, 4.5)
+        x = centre * z / 4.5
+        half = rng.uniform(0.3, 0.6)
+        slab(x - half, x + half, 0.0, rng.uniform(0.5, 1.0), z, 0, 0)
+    return np.round(depth * 1000).astype(np.uint16), labels, who
+
+
+def candidates(seeds, vote: float):
+    """Features and truths of the candidates of rooms ``seeds``, the 'forest' calling a
+    random ``vote`` share of every candidate's pixels a body part (people and cabinets
+    alike: the vote tells nothing)."""
+    seg = Segmenter(min_pixels=50)
+    xs, ys = [], []
+    for s in seeds:
+        depth, labels, who = room(s)
+        rng = np.random.default_rng(1000 + s)
+        called = ((rng.uniform(size=depth.shape) < vote) & (depth > 0)).astype(np.uint8) * 4
+        comp, x = seg.features(depth, INTR, called)
+        size = np.bincount(comp.ravel(), minlength=len(x))
+        person = np.bincount(comp.ravel(), weights=(who > 0).ravel(), minlength=len(x))
+        ok = ~np.isnan(x).any(1)
+        xs.append(x[ok])
+        ys.append(person[ok] >= 0.5 * size[ok])
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def test_people_are_told_from_furniture_where_the_vote_cannot():
+    x, y = candidates(range(30), vote=0.3)
+    assert 30 <= y.sum() and (~y).sum() >= 20  # both kinds occur
+    stage = PersonStage.fit(x, y, FEATURES, trees=30, seed=0)
+    xt, yt = candidates(range(100, 115), vote=0.3)
+    called = stage.predict_proba(xt) >= 0.5
+    assert called[yt].mean() >= 0.9 and called[~yt].mean() <= 0.1
+    body = FEATURES.index("body")
+    assert (xt[:, body] < 0.5).all()  # the vote at 0.5 would have found nobody
+    # the segmentation stage with it: instances of a new room are its people
+    depth, labels, who = room(200)
+    seg = Segmenter(min_pixels=50)
+    noisy = ((np.random.default_rng(5).uniform(size=depth.shape) < 0.3)
+             & (depth > 0)).astype(np.uint8) * 4
+    inst = seg.instances(depth, INTR, noisy, stage)
+    assert inst.max() == who.max()
+    for k in range(1, who.max() + 1):
+        assert (inst[who == k] > 0).mean() > 0.9
+    assert (inst[who == 0] == 0).mean() > 0.99
+    assert not seg.instances(depth, INTR, noisy).any()  # the vote alone: nobody
+
+
+def test_fit_is_seeded_and_nan_rows_are_nobody():
+    x, y = candidates(range(8), vote=0.6)
+    a = PersonStage.fit(x, y, FEATURES, trees=5, seed=3)
+    b = PersonStage.fit(x, y, FEATURES, trees=5, seed=3)
+    c = PersonStage.fit(x, y, FEATURES, trees=5, seed=4)
+    np.testing.assert_array_equal(a.threshold, b.threshold)
+    assert len(a.threshold) != len(c.threshold) or not np.array_equal(a.threshold,
+                                                                       c.threshold)
+    rows = np.vstack([x[:3], np.full((1, len(FEATURES)), np.nan)])
+    p = a.predict_proba(rows)
+    assert p[-1] == 0.0 and ((p >= 0) & (p <= 1)).all()
+    with pytest.raises(ValueError, match="both kinds"):
+        PersonStage.fit(x[y], y[y], FEATURES)
+
+
+def test_stage_travels_in_the_forest_file(tmp_path):
+    from vhgen.forest.trees import first_trees, truncate
+
+    x, y = candidates(range(8), vote=0.6)
+    stage = PersonStage.fit(x, y, FEATURES, trees=4, seed=1)
+    f = Forest(np.zeros((1, 4), np.int16), np.zeros(1, np.int32), np.full(1, -1, np.int32),
+               np.zeros(1, np.int16), np.ones((1, 3), np.int64), np.zeros(1, np.int64),
+               {"label_names": ["a", "b"]}, stage)
+    back = Forest.load(f.save(tmp_path / "f.npz"))
+    assert back.person_stage is not None and back.person_stage.features == FEATURES
+    np.testing.assert_array_equal(back.person_stage.predict_proba(x), stage.predict_proba(x))
+    assert truncate(back, 3).person_stage is back.person_stage
+    assert first_trees(back, 1).person_stage is back.person_stage
+    f.person_stage = None
+    assert Forest.load(f.save(tmp_path / "g.npz")).person_stage is None
+
+
+def rooms_store(path, seeds) -> str:
+    frames = [room(s) for s in seeds]
+    return write_store(path, np.stack([f[0] for f in frames]),
+                       np.stack([f[1] for f in frames]), fx=INTR.fx)
+
+
+def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
+    from tests.forest.test_cli import one_line_error, run
+
+    store = rooms_store(tmp_path / "rooms.zarr", range(24))
+    forest = tmp_path / "f.npz"
+    code, out, _ = run(capsys, "forest", "train", store, "--out", str(forest), *SMALL,
+                       "--max-frames", "8", "--background-share", "0.5",
+                       "--person-frames", "16")
+    assert code == 0
+    f = Forest.load(forest)
+    assert f.person_stage is not None and f.meta["person_stage"]["frames"] == 16
+    # its frames were the 16 the forest did not train on
+    from vhgen.forest.data import select_frames, store_info
+    from vhgen.forest.from_stores import person_stage_frames
+
+    used = {g for _, _, g in select_frames([store_info(store)], 8, 0)}
+    stage_frames = {g for _, _, g in person_stage_frames(f, [store], 16, 0)}
+    assert len(stage_frames) == 16 and not used & stage_frames
+
+    parts = tmp_path / "parts.npz"
+    code, _, _ = run(capsys, "forest", "train", store, "--out", str(parts), *SMALL,
+                     "--segmented")
+    assert code == 0
+    p = Forest.load(parts)
+    assert p.meta["params"]["segmented"] and not p.counts[:, 0].any()  # no background seen
+
+    test = rooms_store(tmp_path / "test.zarr", range(300, 306))
+    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment", "--parts",
+                         str(parts), "--json", str(tmp_path / "e.json"))
+    assert code == 0, err
+    res = json.loads((tmp_path / "e.json").read_text())
+    assert res["parts_on"] == "the true people alone"
+    assert "person stage" in res["people"]["called"]
+    assert res["mean_per_class"] > 0.9  # body and head of segmented people
+    # the segmented forest evaluated alone: also on the true people
+    code, _, _ = run(capsys, "forest", "eval", str(parts), test, "--json",
+                     str(tmp_path / "p.json"))
+    assert json.loads((tmp_path / "p.json").read_text())["parts_on"] == "the true people alone"
+
+    from PIL import Image
+
+    depth, _, who = room(400)
+    png = tmp_path / "d.png"
+    Image.fromarray(depth).save(png)
+    code, out, _ = run(capsys, "forest", "label", str(forest), str(png), "-o",
+                       str(tmp_path / "l.png"), "--segment", "--parts", str(parts),
+                       "--instances", str(tmp_path / "i.png"), "--fx", str(INTR.fx))
+    assert code == 0
+    lab = np.asarray(Image.open(tmp_path / "l.png"))
+    inst = np.asarray(Image.open(tmp_path / "i.png"))
+    assert ((lab > 0) == (inst > 0))[depth > 0].all()  # parts exactly on the people found
+
+    one_line_error(capsys, "forest", "label", str(forest), str(png), "-o",
+                   str(tmp_path / "x.png"), "--segment", "--parts", str(forest),
+                   match="not a --segmented forest")
+    one_line_error(capsys, "forest", "label", str(forest), str(png), "-o",
+                   str(tmp_path / "x.png"), "--parts", str(parts), match="--parts: needs --segment")
+    code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
+                       "--out", str(tmp_path / "g.npz"), "--quiet")
+    assert code == 0 and Forest.load(tmp_path / "g.npz").person_stage is not None
+    every = tmp_path / "every.npz"
+    assert main(["forest", "train", store, "--out", str(every), *SMALL]) == 0
+    capsys.readouterr()
+    one_line_error(capsys, "forest", "person-stage", str(every), store,
+                   match="every frame of these stores trained the part forest")
+    one_line_error(capsys, "forest", "train", store, "--out", str(every), *SMALL,
+                   "--segmented", "--background-share", "0.5",
+                   match="a --segmented forest sees no background")
