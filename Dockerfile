@@ -5,14 +5,14 @@
 # the pack must be inside the build context):
 #   vhgen assets pack -o vhgen-assets.tar.xz && docker build --build-arg ASSETS_PACK=vhgen-assets.tar.xz -t vhgen .
 # On NVIDIA GPUs run with the NVIDIA container toolkit, which mounts the driver's EGL and
-# nvidia-smi for the capabilities set below:  docker run --gpus all ...
+# nvidia-smi for the capabilities set below:  docker run --gpus all ...  (which GPUs stays
+# the runtime's choice: no NVIDIA_VISIBLE_DEVICES here, so a CPU-only pod gets none)
 # vhgen logs GL_RENDERER at start; llvmpipe there means the GPU was not reached.
 FROM debian:12-slim
 
 ARG ASSETS_PACK=
 ENV DEBIAN_FRONTEND=noninteractive \
     VHGEN_HOME=/opt/vhgen-cache \
-    NVIDIA_VISIBLE_DEVICES=all \
     NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility \
     PATH=/opt/vhgen/.venv/bin:$PATH
 
