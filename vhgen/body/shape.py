@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vhgen.assets import vhgen_home
+from vhgen.assets import MACRO_TARGETS, vhgen_home
 from vhgen.errors import AssetError, ConfigError
 
 log = logging.getLogger(__name__)
@@ -156,7 +156,7 @@ class MacroTargets:
     """
 
     def __init__(self, asset_dir: Path, cache_dir: Path | None = None):
-        self.root = Path(asset_dir) / "targets" / "macrodetails"
+        self.root = Path(asset_dir) / MACRO_TARGETS
         files = sorted(self.root.rglob("*.target.gz"))
         if not files:
             raise AssetError(f"no macro targets under {self.root}; run 'vhgen assets fetch'")

@@ -1,0 +1,216 @@
+"""Frames per second of a whole job on this machine, by number of workers, with the GL
+renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
+
+    .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
+        [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
+        [--backend egl|osmesa] [--repeat 1] [--no-warmup]
+
+Each worker count runs the same job (``run_job``, the local executor: worker processes on
+this machine, one GL context each) over the first ``--frames`` frames of the config's plan
+(the same frames and seeds for every count) into a temporary store, deleted afterwards.
+A warm-up job of one shard and one worker runs first (kernels compiled and cached, the
+macro-target cache built), unreported. Per row:
+
+* wall: the whole job, start-up and merge included; fixed: what does not grow with the
+  frames (``RunSummary.fixed_seconds``: wall minus the frames at the steady rate);
+* frames/s dispatch: frames over the dispatch (the workers set up, until the last shard
+  returned), so start-up, merge and shutdown excluded, the last shards' tail included;
+* frames/s steady: workers x one worker's median frames/s over its shards
+  (``RunSummary.steady_seconds_per_frame``): the rate while every worker is busy, without
+  the work of a worker's first shard that later ones reuse (its clutter library, 1-2 s);
+* GPU busy: ``nvidia-smi --query-gpu=utilization.gpu`` sampled every 0.5 s, mean and
+  maximum over the samples taken during the dispatch (mean over the GPUs when there are
+  several); ``-`` without ``nvidia-smi``.
+
+Fewer shards than workers leave workers idle (a row says how many ran): on a GPU node use
+enough frames for several shards per worker, e.g. ``--frames 2400 --workers 4,8,16,32``
+(docs/performance.md). Here (2 cores, llvmpipe) ``--frames 32 --workers 1,2`` is a smoke
+run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from vhgen.job_config import JobConfig
+
+SMI = ["nvidia-smi", "--query-gpu=utilization.gpu", "--format=csv,noheader,nounits"]
+SAMPLE_SECONDS = 0.5
+
+
+class GpuSampler:
+    """``nvidia-smi``'s GPU utilisation (percent) every :data:`SAMPLE_SECONDS` in a thread,
+    with the time of each sample (``time.perf_counter``); no samples without nvidia-smi."""
+
+    def __init__(self) -> None:
+        self.available = shutil.which(SMI[0]) is not None
+        self.samples: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def __enter__(self) -> GpuSampler:
+        if self.available:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+
+    def _run(self) -> None:
+        due = time.perf_counter()
+        while not self._stop.is_set():
+            busy = query_utilization()
+            if busy is not None:
+                self.samples.append((time.perf_counter(), busy))
+            due += SAMPLE_SECONDS
+            self._stop.wait(max(0.0, due - time.perf_counter()))
+
+    def between(self, t0: float, t1: float) -> list[float]:
+        """The samples taken in [t0, t1]."""
+        return [b for t, b in self.samples if t0 <= t <= t1]
+
+
+def query_utilization() -> float | None:
+    """The mean utilisation of this machine's GPUs now (percent), or None."""
+    try:
+        out = subprocess.run(SMI, capture_output=True, text=True, timeout=5, check=True).stdout
+        values = [float(v) for v in out.split()]
+    except (OSError, subprocess.SubprocessError, ValueError):
+        return None
+    return sum(values) / len(values) if values else None
+
+
+def gpu_names() -> str:
+    """nvidia-smi's GPU names, or '-'."""
+    if shutil.which(SMI[0]) is None:
+        return "-"
+    try:
+        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"],
+                             capture_output=True, text=True, timeout=10, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return "-"
+    return ", ".join(n.strip() for n in out.splitlines() if n.strip()) or "-"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One job: its workers (asked, and that ran), frames, times and GPU samples."""
+
+    workers: int
+    ran: int
+    frames: int
+    wall: float
+    fixed: float
+    dispatch: float
+    steady_fps: float
+    gpu: list[float]
+    renderers: list[str]
+
+
+def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | None) -> Row:
+    """One job of ``frames`` frames with ``workers`` local workers; its row."""
+    from vhgen.pipeline.driver import run_job
+
+    c = replace(cfg, num_workers=workers)
+    with tempfile.TemporaryDirectory(prefix="vhgen-bench-gpu-") as tmp:
+        t0 = time.perf_counter()
+        s = run_job(c, Path(tmp) / "job.zarr", max_frames=frames, executor="local")
+    ran = min(workers, s.shards)
+    # the dispatch window: run_job's clock starts just after t0
+    t_end = t0 + s.seconds - s.tail_seconds
+    gpu = sampler.between(t_end - s.render_seconds, t_end) if sampler else []
+    steady = ran / s.steady_seconds_per_frame if s.steady_seconds_per_frame else 0.0
+    return Row(workers, ran, s.frames, s.seconds, s.fixed_seconds, s.render_seconds, steady,
+               gpu, s.renderers)
+
+
+def load_config(args: argparse.Namespace) -> JobConfig:
+    """The scene config with the command's overrides."""
+    from vhgen.job_config import JobConfig
+    from vhgen.sensor.sensor_config import SensorConfig
+
+    cfg = JobConfig.load(args.config, backend=args.backend)
+    if args.motions:
+        cfg = replace(cfg, motions=tuple(str(Path(m).expanduser().resolve())
+                                         for m in args.motions))
+    if args.sensor:
+        cfg = replace(cfg, sensor=SensorConfig.load(args.sensor))
+    if args.frames_per_shard:
+        cfg = replace(cfg, frames_per_shard=args.frames_per_shard)
+    return cfg
+
+
+def print_table(rows: list[Row], gpu_available: bool) -> None:
+    """The rows as a table (one line per job)."""
+    print(f"{'workers':>7s} {'frames':>6s} {'wall s':>7s} {'fixed s':>7s} {'dispatch s':>10s} "
+          f"{'frames/s dispatch':>17s} {'frames/s steady':>15s} {'GPU busy % mean/max':>19s}")
+    for r in rows:
+        if r.gpu:
+            busy = f"{sum(r.gpu) / len(r.gpu):.0f} / {max(r.gpu):.0f}"
+        else:
+            busy = "no samples" if gpu_available else "-"
+        ran = f"{r.workers}" if r.ran == r.workers else f"{r.workers} ({r.ran} ran)"
+        print(f"{ran:>7s} {r.frames:6d} {r.wall:7.1f} {r.fixed:7.1f} {r.dispatch:10.2f} "
+              f"{r.frames / max(r.dispatch, 1e-9):17.1f} {r.steady_fps:15.1f} {busy:>19s}")
+
+
+def _counts(text: str) -> list[int]:
+    try:
+        counts = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text}: comma-separated worker counts") from None
+    if not counts or min(counts) < 1:
+        raise argparse.ArgumentTypeError(f"{text}: worker counts must be >= 1")
+    return counts
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--config", default="cluttered_room",
+                    help="scene config: a shipped name or a YAML path")
+    ap.add_argument("--workers", type=_counts, default=[1, 2, 4],
+                    help="comma-separated worker counts, e.g. 4,8,16,32")
+    ap.add_argument("--frames", type=int, default=32, help="frames of each job")
+    ap.add_argument("--frames-per-shard", type=int, default=0,
+                    help="override the config's output.frames_per_shard")
+    ap.add_argument("--motions", nargs="+", help="BVH files or folders instead of the "
+                    "config's motions (e.g. ../shared/mocap/cmu)")
+    ap.add_argument("--sensor", help="a sensor config instead of the scene's (e.g. ideal)")
+    ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs of every worker count, interleaved")
+    ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up job")
+    args = ap.parse_args()
+
+    cfg = load_config(args)
+    sampler_probe = shutil.which(SMI[0]) is not None
+    print(f"vhgen whole job: config {cfg.name}, {args.frames} frames in shards of "
+          f"{cfg.frames_per_shard}, sensor {cfg.sensor.name}, backend {cfg.backend}, local "
+          f"executor, {os.cpu_count()} CPUs, GPU {gpu_names()}")
+    if not args.no_warmup:
+        run_one(cfg, min(args.frames, cfg.frames_per_shard), 1, None)
+    rows = []
+    with GpuSampler() as sampler:
+        for _ in range(args.repeat):
+            for w in args.workers:
+                rows.append(run_one(cfg, args.frames, w, sampler))
+                print(f"  {w} workers: {rows[-1].wall:.1f} s", flush=True)
+    renderers = sorted({r for row in rows for r in row.renderers})
+    print(f"GL renderer: {', '.join(renderers)}")
+    print_table(rows, sampler_probe)
+
+
+if __name__ == "__main__":
+    main()
