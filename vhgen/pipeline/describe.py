@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.avatar import Body, build_avatar
-from vhgen.body.kernels import footprint as floor_footprint
-from vhgen.body.kernels import skin_points
+from vhgen.body.skin_kernels import footprint as floor_footprint
+from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import matrices_from_heads, posed_heads
 from vhgen.camera import sample_camera
 from vhgen.pipeline.job import Job
