@@ -1,6 +1,6 @@
 """``vhgen forest ...``: train, eval, label, export (registered by vhgen.cli).
 
-The learning-curve study is ``python benchmarks/forest_curves.py`` (it generates frames).
+The learning-curve study is ``python studies/forest_curves.py`` (it generates frames).
 """
 
 from __future__ import annotations
