@@ -18,7 +18,7 @@ from vhgen.body.wardrobe import CARRIED_CLASS, OutfitConfig, parse_outfit
 from vhgen.camera import CameraConfig
 from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
-from vhgen.scene.clutter import CLUTTER_KINDS, NO_RETURN_KINDS
+from vhgen.scene.clutter.kinds import KINDS
 from vhgen.scene.geometry import MAX_SCENE_CLASSES, SCENE_CLASSES
 from vhgen.scene.props import PARAMETRIC, load_mesh
 from vhgen.scene.scene_config import (
@@ -453,7 +453,7 @@ def _clutter(d: Any, src, props: PropsConfig | None) -> ClutterConfig:
     kinds_in = d.get("kinds", list(cd.kinds))
     if not isinstance(kinds_in, list) or not kinds_in:
         raise ConfigError(src, "scene.clutter.kinds", f"must be a non-empty list of "
-                          f"{', '.join(CLUTTER_KINDS)} (or {{kind, class, weight}} "
+                          f"{', '.join(KINDS)} (or {{kind, class, weight}} "
                           f"mappings), got {kinds_in!r}")
     kinds, classes, weights = [], [], []
     for i, k in enumerate(kinds_in):
@@ -467,8 +467,8 @@ def _clutter(d: Any, src, props: PropsConfig | None) -> ClutterConfig:
             if weight <= 0:
                 raise ConfigError(src, field + ".weight", f"must be > 0, got {weight}")
             field, k = field + ".kind", k["kind"]
-        if k not in CLUTTER_KINDS:
-            raise ConfigError(src, field, f"must be one of {', '.join(CLUTTER_KINDS)}, "
+        if k not in KINDS:
+            raise ConfigError(src, field, f"must be one of {', '.join(KINDS)}, "
                               f"got {k!r}")
         kinds.append(k)
         classes.append(cls or k)
@@ -481,18 +481,18 @@ def _clutter(d: Any, src, props: PropsConfig | None) -> ClutterConfig:
     # window glass gives no return: its class must be the glass's alone
     others = [(f"scene.clutter.kinds[{i}]", c)
               for i, (k, c) in enumerate(zip(kinds, classes, strict=True))
-              if k not in NO_RETURN_KINDS]
+              if KINDS[k].returns]
     others.append(("the things on surfaces", cfg.objects_class))
     if props is not None:
         others += [("scene.props", c) for c in props.kind_classes + props.mesh_classes]
     for i, (k, c) in enumerate(zip(kinds, classes, strict=True)):
-        if k in NO_RETURN_KINDS:
+        if not KINDS[k].returns:
             clash = next((who for who, o in others if o == c), None)
             if clash is not None or c == "prop":
-                raise ConfigError(src, f"scene.clutter.kinds[{i}].class", f"windows give no "
-                                  f"return (their glass has no measurement), so their class "
-                                  f"{c!r} cannot also be that of {clash or 'props'}: give "
-                                  f"windows a class of their own")
+                raise ConfigError(src, f"scene.clutter.kinds[{i}].class", f"{k} items give "
+                                  f"no return (their surface has no measurement), so "
+                                  f"their class {c!r} cannot also be that of "
+                                  f"{clash or 'props'}: give {k} items a class of their own")
     return cfg
 
 
@@ -501,7 +501,7 @@ def _check_clutter_fits(cfg: ClutterConfig, room: RoomConfig, people: tuple[int,
     """Clutter that can never fit is a load-time error: a kind larger than the largest
     room (along a wall, or higher than its walls), or more items at the least than the
     floor the camera sees can hold."""
-    from vhgen.scene.clutter import PIERCES_CEILING, smallest
+    from vhgen.scene.clutter.items import smallest
 
     side = max(room.width_m[1], room.depth_m[1])
     need = 0.0
@@ -513,7 +513,7 @@ def _check_clutter_fits(cfg: ClutterConfig, room: RoomConfig, people: tuple[int,
             raise ConfigError(src, f"scene.clutter.kinds[{i}]", f"{k} needs a wall of at "
                               f"least {x1 - x0 + 0.05:.2f} m; scene.room allows at most "
                               f"{side} m")
-        if k not in PIERCES_CEILING and shape.top > room.height_m[1]:
+        if not KINDS[k].pierces_ceiling and shape.top > room.height_m[1]:
             raise ConfigError(src, f"scene.clutter.kinds[{i}]", f"{k} is at least "
                               f"{shape.top:.2f} m high; scene.room.height_m allows at most "
                               f"{room.height_m[1]} m")

@@ -10,7 +10,7 @@ from functools import cached_property
 
 import numpy as np
 
-from vhgen.scene.clutter import CLUTTER_KINDS, NO_RETURN_KINDS
+from vhgen.scene.clutter.kinds import CLUTTER_KINDS, KINDS
 from vhgen.scene.geometry import FLOOR, PROP, SCENE_CLASSES, WALL
 from vhgen.scene.props import PARAMETRIC, PropShape
 
@@ -67,7 +67,7 @@ class PropsConfig:
         return tuple(dict.fromkeys(names))
 
 
-OBJECTS_CLASS = "objects"  # things on surfaces, when no `objects` entry names a class
+OBJECTS_CLASS = "objects"  # things on surfaces, when no entry of their kind names a class
 
 
 @dataclass(frozen=True)
@@ -96,10 +96,10 @@ class ClutterConfig:
 
     @property
     def objects_class(self) -> str:
-        """The class of things standing on surfaces: the ``objects`` entry's class if
-        there is one, else "objects"."""
+        """The class of things standing on surfaces: the class of the first entry whose
+        kind's record says so (``objects``) if there is one, else "objects"."""
         for k, c in zip(self.kinds, self.classes, strict=True):
-            if k == "objects":
+            if KINDS[k].surface_things:
                 return c
         return OBJECTS_CLASS
 
@@ -114,7 +114,7 @@ class ClutterConfig:
     def no_return_classes(self) -> tuple[str, ...]:
         """Classes of kinds whose surface gives no measurement (window glass)."""
         return tuple(dict.fromkeys(c for k, c in zip(self.kinds, self.classes, strict=True)
-                                   if k in NO_RETURN_KINDS))
+                                   if not KINDS[k].returns))
 
 
 @dataclass(frozen=True)
