@@ -429,7 +429,7 @@ def _backgrounds(v: Any, src) -> tuple[BackgroundSource, ...]:
 def _check_background_sensor(scene: SceneConfig, sensor: SensorConfig, src) -> None:
     """Load-time: a sensor that can run over real backgrounds, and intrinsics given for
     PNG backgrounds that are the sensor's (see ``vhgen.scene.background``)."""
-    from vhgen.scene.background import intrinsics_mismatch
+    from vhgen.scene.background.load import intrinsics_mismatch
 
     if "projector_depth" in sensor.needs:
         raise ConfigError(src, "scene.backgrounds", f"sensor {sensor.name} needs a "
