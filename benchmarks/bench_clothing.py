@@ -65,7 +65,7 @@ def main() -> None:
     from vhgen.pipeline.poses import load_poses
     from vhgen.render.context import create_context
     from vhgen.render.renderer import DepthLabelRenderer, Draw
-    from vhgen.render.scene import upload_body
+    from vhgen.render.scene_renderer import upload_body
     from vhgen.scene.geometry import PERSON
     from vhgen.sensor.sensor_config import SensorConfig
 

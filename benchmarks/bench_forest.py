@@ -77,9 +77,9 @@ def mean_path(forest, depth_mm: np.ndarray) -> float:
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
-    from vhgen.bench.scenes import human_frame
     from vhgen.forest.trees import Forest, Predictor
     from vhgen.mocap.clips import builtin_motion_path
+    from vhgen.quality.fidelity_scenes import human_frame
     from vhgen.render.context import create_context
     from vhgen.sensor.simulator import SensorConfig
 

@@ -350,7 +350,7 @@ def background_rows(bg_path, scene_path, backend, num_frames, asset_dir
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.job import prepare_job
     from vhgen.render.context import create_context
-    from vhgen.scene.background import estimate_floor, free_floor
+    from vhgen.scene.background.floor import estimate_floor, free_floor
     from vhgen.store.zarr_store import create_store
 
     bg_cfg = JobConfig.load(bg_path, backend=backend)

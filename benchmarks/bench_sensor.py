@@ -59,10 +59,10 @@ def icl_style_window(disp: np.ndarray, dots: np.ndarray, invalid: float = 0.0,
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
-    from vhgen.bench.scenes import human_frame, suite
     from vhgen.mocap.clips import builtin_motion_path
+    from vhgen.quality.fidelity_scenes import human_frame, suite
     from vhgen.render.context import create_context
-    from vhgen.sensor.kernels import correlation_window, dots_from_pattern
+    from vhgen.sensor.sensor_kernels import correlation_window, dots_from_pattern
     from vhgen.sensor.simulator import PATTERN_PAD, SensorConfig, SensorModel
     from vhgen.yamlio import configs_dir
 

@@ -1,8 +1,8 @@
 """The README and docs hold together: every relative link and image of README.md,
-CHANGELOG.md and docs/**/*.md points at a file that exists (and a ``#fragment`` at one of
-its headings, slugged as GitHub does), every ``vhgen`` command the README's and the docs'
-bash blocks show exists (its ``--help`` exits 0), and the README stays a newcomer's page
-(at most 25 kB, the details in docs/)."""
+CHANGELOG.md, docs/**/*.md and studies/README.md points at a file that exists (and a
+``#fragment`` at one of its headings, slugged as GitHub does), every ``vhgen`` command the
+README's and the docs' bash blocks show exists (its ``--help`` exits 0), and the README
+stays a newcomer's page (at most 25 kB, the details in docs/)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,8 @@ VHGEN_CMD = re.compile(r"(?:^|[;&|(]\s*|\s)(?:[\w.~-]*/)*vhgen[ \t]+([a-z][\w-]*
 
 
 def markdown_files() -> list[Path]:
-    files = [README, REPO / "CHANGELOG.md", *sorted((REPO / "docs").rglob("*.md"))]
+    files = [README, REPO / "CHANGELOG.md", *sorted((REPO / "docs").rglob("*.md")),
+             REPO / "studies" / "README.md"]
     return [p for p in files if p.is_file()]
 
 

@@ -32,7 +32,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("store",),
     ("render", "preview"),
     ("pipeline",),
-    ("bench",),
+    ("quality",),
     ("forest",),
     ("dataset", "cli", "__init__", "__main__"),
 ]
@@ -188,11 +188,43 @@ def test_every_module_has_a_layer():
         _layer(_module(path))
 
 
+def module_name_clashes(root: Path) -> list[str]:
+    """Module basenames under ``root`` that say two things: two modules of one name (each
+    ``__init__.py`` aside), or a module named like a package (``render/scene.py`` beside
+    ``scene/``). A newcomer who finds ``kernels.py`` should know which one it is."""
+    modules: dict[str, list[str]] = {}
+    for p in sorted(root.rglob("*.py")):
+        if p.name != "__init__.py":
+            modules.setdefault(p.stem, []).append(str(p.relative_to(root.parent)))
+    packages = {p.parent.name: str(p.parent.relative_to(root.parent))
+                for p in root.rglob("__init__.py") if p.parent != root}
+    bad = [f"{name}.py: {', '.join(paths)}" for name, paths in modules.items()
+           if len(paths) > 1]
+    bad += [f"{', '.join(paths)} named like the package {packages[name]}/"
+            for name, paths in modules.items() if name in packages]
+    return bad
+
+
+def test_module_names_are_unique():
+    bad = module_name_clashes(ROOT)
+    assert not bad, "module names that say two things:\n" + "\n".join(bad)
+
+
+def test_module_name_clash_finder_sees_clashes(tmp_path):
+    pkg = tmp_path / "pkg"
+    for f in ("__init__.py", "cli.py", "a/__init__.py", "a/cli.py", "b/__init__.py",
+              "b/x.py", "c/__init__.py", "c/a.py"):
+        (pkg / f).parent.mkdir(parents=True, exist_ok=True)
+        (pkg / f).write_text("")
+    assert module_name_clashes(pkg) == ["cli.py: pkg/a/cli.py, pkg/cli.py",
+                                        "pkg/c/a.py named like the package pkg/a/"]
+
+
 def test_import_vhgen_is_light():
     code = ("import sys, time; t = time.perf_counter(); import vhgen; "
             "vhgen.SensorConfig.load('kinect_v1_full'); "
             "print(time.perf_counter() - t); "
-            "bad = [m for m in ('scipy.ndimage', 'scipy', 'numba', 'vhgen.sensor.kernels', "
+            "bad = [m for m in ('scipy.ndimage', 'scipy', 'numba', 'vhgen.sensor.sensor_kernels', "
             "'moderngl', 'glcontext', 'ray', 'zarr', 'pyarrow') if m in sys.modules]; "
             "print(','.join(bad)); sys.exit(1 if bad else 0)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -9,13 +9,15 @@ REPO = Path(__file__).resolve().parent.parent
 def test_ruff_clean():
     ruff = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
     assert ruff, "ruff is part of the dev extra"
-    res = subprocess.run([ruff, "check", "vhgen", "jobs", "scripts", "benchmarks", "tests"],
+    res = subprocess.run([ruff, "check", "vhgen", "jobs", "scripts", "benchmarks", "studies",
+                          "tests"],
                          cwd=REPO, capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
 
 
 def test_mypy_clean():
-    """The type checker configured in pyproject.toml ([tool.mypy]) passes on vhgen/."""
+    """The type checker configured in pyproject.toml ([tool.mypy]) passes on vhgen/ and
+    studies/."""
     res = subprocess.run([sys.executable, "-m", "mypy"], cwd=REPO, capture_output=True,
                          text=True)
     assert res.returncode == 0, res.stdout + res.stderr
@@ -28,8 +30,8 @@ def test_no_merge_conflict_markers():
 
     marker = re.compile(r"^(<{7}|>{7})( |$)", re.M)
     bad = []
-    for sub in ("vhgen", "docs", "configs", "tests", "benchmarks", "jobs", "scripts",
-                "cluster"):
+    for sub in ("vhgen", "docs", "configs", "tests", "benchmarks", "studies", "jobs",
+                "scripts", "cluster"):
         for p in (REPO / sub).rglob("*"):
             if p.suffix in {".py", ".md", ".yaml", ".yml", ".toml", ".txt", ".glsl", ".sh"}:
                 if marker.search(p.read_text(errors="replace")):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 CODE = """
 import numpy as np
-import vhgen.sensor.kernels as k
+import vhgen.sensor.sensor_kernels as k
 d = np.full((4, 4), 2.0, np.float32)
 k.sanitise(d)
 s = k.sanitise.stats

@@ -349,7 +349,7 @@ def _add_avatar(sub: _Sub) -> None:
 # -- bench fidelity ----------------------------------------------------------------------
 
 def _cmd_bench_fidelity(args: argparse.Namespace) -> int:
-    from vhgen.bench.fidelity import DEFAULT_CONFIGS, bench_fidelity
+    from vhgen.quality.fidelity_bench import DEFAULT_CONFIGS, bench_fidelity
 
     res = bench_fidelity(args.out, quick=args.quick, human=not args.no_human,
                          configs=tuple(args.configs or DEFAULT_CONFIGS), backend=args.backend,
@@ -360,7 +360,7 @@ def _cmd_bench_fidelity(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench_realism(args: argparse.Namespace) -> int:
-    from vhgen.bench.realism import bench_realism
+    from vhgen.quality.realism_bench import bench_realism
 
     res = bench_realism(args.real, args.store, args.out, max_frames=args.max_frames,
                         fx=args.fx, warn=lambda m: print(f"vhgen: warning: {m}",
@@ -498,10 +498,10 @@ def _add_inspect(sub: _Sub) -> None:
     ins.add_argument("--json", action="store_true", help="print the report as JSON")
 
 
-# -- forest (vhgen/forest/cli.py) ----------------------------------------------------------
+# -- forest (vhgen/forest/commands.py) ----------------------------------------------------------
 
 def _add_forest(sub: _Sub) -> None:
-    from vhgen.forest.cli import add_parser
+    from vhgen.forest.commands import add_parser
 
     add_parser(sub)
 

@@ -1,4 +1,6 @@
-"""YAML at the edge: load a mapping from a file and check its keys, naming file and field."""
+"""YAML at the edge: load a mapping from a file, check its keys, and the checks every config
+section shares (a number, a number or [min, max] range, a probability), each naming file
+and field."""
 
 from __future__ import annotations
 
@@ -40,6 +42,66 @@ def check_keys(data: dict, allowed: set[str], required: set[str], source, prefix
     for k in required:
         if k not in data:
             raise ConfigError(source, f"{prefix}{k}", "required key is missing")
+
+
+def number(d: dict, key: str, src, prefix: str, *, lo: float | None = None,
+           hi: float | None = None, integer: bool = False, default: Any = None) -> Any:
+    """``d[key]`` as a float (an int when ``integer``) within [lo, hi]; ``default`` when the
+    key is absent (None: the key is required). ConfigError naming ``prefix + key``."""
+    if key not in d:
+        if default is None:
+            raise ConfigError(src, prefix + key, "required key is missing")
+        return default
+    v = d[key]
+    ok = isinstance(v, int) if integer else isinstance(v, (int, float))
+    if isinstance(v, bool) or not ok:
+        kind = "an integer" if integer else "a number"
+        raise ConfigError(src, prefix + key, f"must be {kind}, got {v!r}")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise ConfigError(src, prefix + key, f"{v!r} is outside [{lo}, {hi}]")
+    return int(v) if integer else float(v)
+
+
+def range_value(v: Any, src, where: str, *, lo: float | None = None,
+                hi: float | None = None) -> tuple[float, float]:
+    """A number (min = max) or [min, max] within [lo, hi], as (min, max) floats;
+    ConfigError naming ``where``."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = [v, v]
+    if (not isinstance(v, list) or len(v) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+        raise ConfigError(src, where, f"must be a number or [min, max], got {v!r}")
+    a, b = float(v[0]), float(v[1])
+    if a > b:
+        raise ConfigError(src, where, f"min {a} > max {b}")
+    if (lo is not None and a < lo) or (hi is not None and b > hi):
+        raise ConfigError(src, where, f"[{a}, {b}] is outside [{lo}, {hi}]")
+    return (a, b)
+
+
+def number_range(d: dict, key: str, src, prefix: str, default: tuple[float, float], *,
+                 lo: float | None = None, hi: float | None = None) -> tuple[float, float]:
+    """``d[key]`` by :func:`range_value`, ``default`` when the key is absent."""
+    if key not in d:
+        return default
+    return range_value(d[key], src, prefix + key, lo=lo, hi=hi)
+
+
+def int_range(d: dict, key: str, src, prefix: str, default: tuple[int, int], lo: int,
+              hi: int) -> tuple[int, int]:
+    """``d[key]`` as an integer (min, max) within [lo, hi] (see :func:`number_range`)."""
+    a, b = number_range(d, key, src, prefix, (float(default[0]), float(default[1])), lo=lo,
+                        hi=hi)
+    if a != int(a) or b != int(b):
+        raise ConfigError(src, prefix + key, f"must be integers, got {d[key]!r}")
+    return int(a), int(b)
+
+
+def probability(v: Any, src, where: str) -> float:
+    """A number in [0, 1]; ConfigError naming ``where``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1:
+        raise ConfigError(src, where, f"must be a probability in [0, 1], got {v!r}")
+    return float(v)
 
 
 def configs_dir() -> Path:

@@ -27,7 +27,7 @@ import pytest
 from vhgen.body.avatar import _chart, build_avatar, build_body
 from vhgen.body.chart import vertex_normals
 from vhgen.body.contact import body_contacts, dressed_positions
-from vhgen.body.kernels import skin_points
+from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import bone_matrices
 from vhgen.job_config import AvatarConfig, PosesConfig
 from vhgen.mocap.retarget import load_all_maps

@@ -101,7 +101,7 @@ def test_export_formats(tmp_path, body):
 def test_compiled_cpu_skinning_equals_the_float64_reference(body, shared_mocap, clip):
     """skin_points (placement, floor contact) against skin_vertices on real poses: same
     points up to float64 rounding, whatever the order of the sums."""
-    from vhgen.body.kernels import skin_points
+    from vhgen.body.skin_kernels import skin_points
 
     m = read_bvh(shared_mocap / clip)
     rot, root = build_retargeter(m, body.rig, detect_dialect(m, load_all_maps())).apply(

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.forest.test_kernel import reference_predict
+from tests.forest.test_predict_kernel import reference_predict
 from vhgen.forest.data import read_frames, select_frames, store_info
 from vhgen.forest.evaluate import evaluate
 from vhgen.forest.from_stores import train_forest

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vhgen.body.kernels import skin_points
+from vhgen.body.skin_kernels import skin_points
 from vhgen.camera import mounted_camera
 from vhgen.job_config import JobConfig
 from vhgen.scene.geometry import floor_mesh, room_walls
@@ -66,7 +66,7 @@ def _make_background(path: Path) -> np.ndarray:
     from vhgen.depthfile import write_pcd
     from vhgen.render.context import create_context
     from vhgen.render.renderer import DepthLabelRenderer, Draw
-    from vhgen.render.scene import merge_static
+    from vhgen.render.scene_renderer import merge_static
     from vhgen.scene.geometry import PROP, StaticMesh
     from vhgen.sensor.sensor_config import SensorConfig
     from vhgen.sensor.simulator import SensorModel
@@ -102,7 +102,7 @@ def composited(tmp_path_factory, asset_dir):
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.job import prepare_job
     from vhgen.render.renderer import DepthLabelRenderer
-    from vhgen.render.scene import SceneRenderer
+    from vhgen.render.scene_renderer import SceneRenderer
 
     tmp = tmp_path_factory.mktemp("bg")
     true_w2c = _make_background(tmp / "room.pcd")

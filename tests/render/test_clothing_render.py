@@ -13,7 +13,7 @@ from vhgen.body.skinning import bone_matrices
 from vhgen.body.wardrobe import KINDS, Chance
 from vhgen.camera import Intrinsics, look_at
 from vhgen.render.renderer import DepthLabelRenderer, Draw
-from vhgen.render.scene import upload_body
+from vhgen.render.scene_renderer import upload_body
 from vhgen.scene.geometry import PERSON
 
 INTR = Intrinsics(240, 320, 300.0, 300.0, 119.5, 159.5)

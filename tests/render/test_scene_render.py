@@ -8,7 +8,7 @@ import pytest
 from vhgen.camera import CameraPose, Intrinsics, pixel_rays
 from vhgen.errors import RenderError
 from vhgen.render.renderer import DepthLabelRenderer, Draw
-from vhgen.render.scene import SceneRenderer
+from vhgen.render.scene_renderer import SceneRenderer
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import FLOOR, PERSON, PROP, WALL, StaticMesh, quad
 
@@ -176,7 +176,7 @@ def test_many_avatars_never_release_a_mesh_the_frame_draws(gl_ctx, monkeypatch):
     """Frames of 3 (then 6) people drawn from 9 avatars, 4 resident: the resident meshes
     stay bounded (least recently used go) and never include a released one the frame still
     draws."""
-    import vhgen.render.scene as scene_mod
+    import vhgen.render.scene_renderer as scene_mod
 
     monkeypatch.setattr(scene_mod, "MAX_RESIDENT_AVATARS", 4)
     MAX_RESIDENT_AVATARS = 4

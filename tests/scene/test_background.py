@@ -18,13 +18,8 @@ import pytest
 from vhgen.camera import Intrinsics, mounted_camera, pitch_roll_deg, project
 from vhgen.depthfile import write_pcd
 from vhgen.errors import BackgroundError, ConfigError
-from vhgen.scene.background import (
-    CELL_M,
-    estimate_floor,
-    free_floor,
-    intrinsics_mismatch,
-    load_backgrounds,
-)
+from vhgen.scene.background.floor import CELL_M, estimate_floor, free_floor
+from vhgen.scene.background.load import intrinsics_mismatch, load_backgrounds
 from vhgen.scene.scene_config import BackgroundSource
 
 INTR = Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)

@@ -1,6 +1,7 @@
-"""Procedural clutter: every kind builds and rebuilds from its parameters, placement never
-intersects anything over many seeds (hypothesis), keeps people visible, records what
-rebuilds each item, and bad clutter config is one error naming the field."""
+"""Procedural clutter: every kind has a complete record in the one registry, builds and
+rebuilds from its parameters, placement never intersects anything over many seeds
+(hypothesis), keeps people visible, records what rebuilds each item, and bad clutter
+config is one error naming the field."""
 
 from __future__ import annotations
 
@@ -15,8 +16,19 @@ from scipy.spatial import ConvexHull
 
 from vhgen.errors import ConfigError
 from vhgen.job_config import JobConfig
-from vhgen.scene.clutter import CLUTTER_KINDS, MODES, build, sample_params, smallest, variant
-from vhgen.scene.clutter_place import HIDES_ABOVE_M, HIDES_FROM_M
+from vhgen.scene.clutter import (
+    CLUTTER_KINDS,
+    KINDS,
+    ClutterKind,
+    build,
+    clutter_kind,
+    sample_params,
+    smallest,
+    variant,
+)
+from vhgen.scene.clutter.builders import bag
+from vhgen.scene.clutter.kinds import COMMON_PARAMS, PLACEMENT_MODES, SHIPPED
+from vhgen.scene.clutter.place import HIDES_ABOVE_M, HIDES_FROM_M
 from vhgen.scene.geometry import WALL, room_walls
 from vhgen.scene.meshkit import BODY, OBJECT
 from vhgen.scene.meshkit import WALL as ROLE_WALL
@@ -53,6 +65,48 @@ def _inside_convex(poly: np.ndarray, pts: np.ndarray, tol: float = 1e-9) -> bool
 
 
 # -- the kinds ------------------------------------------------------------------------
+
+
+def test_every_kind_has_a_complete_record():
+    """One record per kind holds all there is to know of it: nothing is missing, and the
+    registry is the shipped records in order (their positions seed the variants)."""
+    assert tuple(KINDS) == CLUTTER_KINDS == tuple(k.name for k in SHIPPED)
+    assert len(set(CLUTTER_KINDS)) == len(CLUTTER_KINDS) >= 19
+    for name, rec in KINDS.items():
+        assert isinstance(rec, ClutterKind) and rec.name == name and clutter_kind(name) is rec
+        assert rec.ranges and all(isinstance(k, str) and k not in COMMON_PARAMS and lo <= hi
+                                  for k, (lo, hi) in rec.ranges.items()), name
+        assert callable(rec.builder), name
+        assert rec.modes and {m for m, _ in rec.modes} <= set(PLACEMENT_MODES), name
+        assert all(w > 0 for _, w in rec.modes) and 0 < rec.repeat <= 1, name
+        for flag in (rec.centred, rec.returns, rec.pierces_ceiling, rec.surface_things):
+            assert isinstance(flag, bool), name
+        shape = smallest(name)  # the builder builds it and its opening fits it
+        assert len(shape.faces) and shape.kind == name
+        assert (shape.opening is None) == (rec.opening is None), name
+        with pytest.raises(TypeError):  # a record is frozen, its ranges read-only
+            rec.ranges["w"] = (0.0, 1.0)  # type: ignore[index]
+    # at least one kind of each special case, so each field is exercised by the scenes
+    assert {"window"} == {k for k, r in KINDS.items() if not r.returns}
+    assert any(r.pierces_ceiling for r in KINDS.values())
+    assert any(r.opening for r in KINDS.values()) and any(r.centred for r in KINDS.values())
+    assert [k for k, r in KINDS.items() if r.surface_things] == ["objects"]
+
+
+@pytest.mark.parametrize("bad", [
+    {"name": "two words"}, {"ranges": {}}, {"ranges": {"w": (1.0, 0.5)}},
+    {"ranges": {"seed": (0, 1)}}, {"builder": None}, {"modes": ()},
+    {"modes": (("ceiling", 1.0),)}, {"modes": (("wall", 0.0),)}, {"repeat": 0.0},
+    {"centred": "yes"}, {"opening": 3},
+])
+def test_an_incomplete_record_is_refused(bad):
+    good = {"name": "sack", "ranges": {"w": (0.3, 0.6), "h": (0.25, 0.5), "d": (0.15, 0.3),
+                                       "handles": (0, 1)},
+            "builder": bag, "modes": (("floor", 1.0),)}
+    ClutterKind(**good)
+    with pytest.raises(TypeError, match="clutter kind"):
+        ClutterKind(**{**good, **bad})
+
 
 
 @pytest.mark.parametrize("kind", CLUTTER_KINDS)
@@ -221,7 +275,7 @@ def _things(d, desc):
         world = shape.vertices @ t[:3, :3].T + t[:3, 3]
         assert np.allclose(world, mesh.vertices, atol=1e-9), item.kind
         assert np.array_equal(mesh.face_classes, sc.clutter_roles[rec["class"]][shape.roles])
-        assert rec["mode"] in dict(MODES[rec["kind"]])
+        assert rec["mode"] in dict(KINDS[rec["kind"]].modes)
         for g, (_, y0, y1, inside) in enumerate(shape.solids):
             v = world[np.unique(shape.faces[shape.groups == g])]
             clear = wall_clearance(desc.room, v[:, [0, 2]])
@@ -364,6 +418,19 @@ def test_bad_clutter_is_one_line_naming_the_field(tmp_path: Path, room, clutter,
         JobConfig.load(p)
     assert e.value.field == field, str(e.value)
     assert "\n" not in str(e.value) and str(p) in str(e.value)
+
+
+def test_unknown_kind_error_lists_the_registry(tmp_path: Path):
+    p = tmp_path / "bad.yaml"
+    p.write_text(BAD.format(room="{width_m: [4, 6], depth_m: [5, 7]}",
+                            clutter="{kinds: [bookcase, sofa]}"))
+    with pytest.raises(ConfigError, match=r"must be one of .*got 'sofa'") as e:
+        JobConfig.load(p)
+    assert f"must be one of {', '.join(KINDS)}, got 'sofa'" in str(e.value)
+    # and code that names a kind that is not there says which there are, and how to add one
+    with pytest.raises(ValueError, match="unknown clutter kind 'sofa'") as v:
+        build("sofa", {"seed": 0, "fill": 0.0})
+    assert all(k in str(v.value) for k in KINDS) and "ClutterKind record" in str(v.value)
 
 
 def test_clutter_classes_follow_props_and_merge(tmp_path: Path):

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vhgen.bench.scenes import Frame, Rect, analytic_frame
+from vhgen.quality.fidelity_scenes import Frame, Rect, analytic_frame
 from vhgen.sensor.simulator import SensorConfig, SensorModel
 from vhgen.yamlio import configs_dir
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from vhgen.sensor.composite import REAL_HOLE, reach_px, real_depth_m, simulate_over_real
-from vhgen.sensor.kernels import encode_raw11
 from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.sensor.sensor_kernels import encode_raw11
 from vhgen.sensor.simulator import SensorModel
 
 REAL_ID = 5 << 16  # packed ids of a real pixel: class 5, label 0, instance 0

@@ -1,6 +1,6 @@
 """The compiled correlation window equals a plain reference, bit for bit.
 
-The reference below follows the docstring of ``kernels.correlation_window`` literally:
+The reference below follows the docstring of ``sensor_kernels.correlation_window`` literally:
 pure Python/NumPy, no early exits, float weights instead of ranks, the whole window
 scanned. Only the float64 window sum is taken from a summed-area table built in the
 documented order (row running sum, added to the row above), since that order is part of
@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from vhgen.sensor.kernels import correlation_window
+from vhgen.sensor.sensor_kernels import correlation_window
 
 
 def accepted_dots(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int,

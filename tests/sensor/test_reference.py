@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vhgen.bench.scenes import analytic_frame
+from vhgen.quality.fidelity_scenes import analytic_frame
 from vhgen.sensor.simulator import SensorConfig, SensorModel
 
 F, B = 571.26, 0.075
@@ -18,7 +18,7 @@ def _ref(tmp_path, noise: bool) -> SensorModel:
 
 
 def test_reference_recovers_plane_disparity_to_the_eighth_pixel(tmp_path):
-    from vhgen.bench.scenes import Rect
+    from vhgen.quality.fidelity_scenes import Rect
 
     m = _ref(tmp_path, noise=False)
     intr = m.cfg.intrinsics
@@ -35,7 +35,7 @@ def test_reference_recovers_plane_disparity_to_the_eighth_pixel(tmp_path):
 
 
 def test_reference_shadows_and_noise(tmp_path):
-    from vhgen.bench.scenes import Rect
+    from vhgen.quality.fidelity_scenes import Rect
 
     m = _ref(tmp_path, noise=True)
     intr = m.cfg.intrinsics
@@ -54,7 +54,7 @@ def test_reference_shadows_and_noise(tmp_path):
 def test_reference_near_field_beyond_search_range_is_invalid(tmp_path):
     """At 0.5 m the disparity (85.7 px) lies past the 64 px search window: no measurement,
     as on the device ("too near"), and no NaN."""
-    from vhgen.bench.scenes import Rect
+    from vhgen.quality.fidelity_scenes import Rect
 
     m = _ref(tmp_path, noise=False)
     fr = analytic_frame("near", "plane", m.cfg.intrinsics, B, [Rect(0.5)])

@@ -145,7 +145,7 @@ def dressed_positions(vertices: np.ndarray, offsets: np.ndarray, mask: np.ndarra
     linear blend skinning by (B, 4, 4) ``matrices``: skin = vertices - offsets skinned,
     offsets turned by the blended rotation, pressed in by the hands and pushed out of the
     legs as ``mask`` (V,) allows (see the module)."""
-    from vhgen.body.kernels import skin_points
+    from vhgen.body.skin_kernels import skin_points
 
     m = np.asarray(matrices, np.float64)
     skin = skin_points(np.asarray(vertices, np.float64) - offsets, joints, weights, m)

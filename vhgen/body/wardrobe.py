@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.errors import ConfigError
-from vhgen.yamlio import check_keys
+from vhgen.yamlio import check_keys, probability, range_value
 
 ITEMS = ("top", "outer", "bottom", "shoes", "hair", "hat", "carried")
 CARRIED_CLASS = "carried"  # the scene class of carried things that are not the person
@@ -233,27 +233,11 @@ class OutfitConfig:
         return out
 
 
-def _prob(v: Any, src, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1:
-        raise ConfigError(src, where, f"must be a probability in [0, 1], got {v!r}")
-    return float(v)
-
-
 def _param(v: Any, default: Param, src, where: str) -> Param:
     if isinstance(default, Chance):
-        return Chance(_prob(v, src, where))
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        v = [v, v]
-    if (not isinstance(v, list) or len(v) != 2
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
-        raise ConfigError(src, where, f"must be a number or [min, max], got {v!r}")
-    lo, hi = float(v[0]), float(v[1])
-    if lo > hi:
-        raise ConfigError(src, where, f"min {lo} > max {hi}")
-    b = default.bounds
-    if lo < b[0] or hi > b[1]:
-        raise ConfigError(src, where, f"[{lo}, {hi}] is outside [{b[0]}, {b[1]}]")
-    return Range(lo, hi, b)
+        return Chance(probability(v, src, where))
+    lo, hi = range_value(v, src, where, lo=default.bounds[0], hi=default.bounds[1])
+    return Range(lo, hi, default.bounds)
 
 
 def _item(name: str, d: Any, src, prefix: str) -> ItemConfig | None:
@@ -263,7 +247,7 @@ def _item(name: str, d: Any, src, prefix: str) -> ItemConfig | None:
         d = {}
     kinds = KINDS[name]
     check_keys(d, {"probability", "kinds", *kinds}, set(), src, prefix)
-    prob = _prob(d.get("probability", DEFAULT_PROBABILITY[name]), src, prefix + "probability")
+    prob = probability(d.get("probability", DEFAULT_PROBABILITY[name]), src, prefix + "probability")
     raw = d.get("kinds", DEFAULT_WEIGHTS[name])
     if isinstance(raw, list):
         raw = {k: 1.0 for k in raw} if all(isinstance(k, str) for k in raw) else raw

@@ -103,7 +103,7 @@ class Segmenter:
     min_split_width_m: float = 0.7  # two people side by side at least; one is ~0.5
     min_head_width_m: float = 0.12  # a head 0.15-0.2 m across; a fist, a forearm ~0.08
     # chosen on build data, never on real check frames (`python
-    # benchmarks/segment_threshold.py FOREST --frames 100`: 100 synthetic frames of
+    # studies/segment_threshold.py FOREST --frames 100`: 100 synthetic frames of
     # people_room/people_real the forest did not train on; the recommended forest's
     # settings, 1120 frames, background_share 0.5): the largest fraction keeping at least
     # 95% of the person clusters' pixels. 0.5 keeps 95.8% and passes 3.0% of the other

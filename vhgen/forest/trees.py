@@ -1,5 +1,5 @@
 """The forest as arrays, its file format (.npz + JSON metadata) and the Predictor (its
-compiled kernel is :mod:`vhgen.forest.kernel`).
+compiled kernel is :mod:`vhgen.forest.predict_kernel`).
 
 A tree is stored sparse, breadth first: node ``i`` has a feature ``offsets[i]`` (du1, dv1,
 du2, dv2 int16 pixel-metres), a threshold ``thresh[i]`` (int32 millimetres, within int16
@@ -22,8 +22,8 @@ import numpy as np
 
 from vhgen.errors import ForestError
 from vhgen.forest.features import BACKGROUND_MM, FOCAL_SCALE, prepare_depth
-from vhgen.forest.kernel import MAX_SIDE, pack_forest, predict_batch, predict_frame
 from vhgen.forest.person_stage import PersonStage
+from vhgen.forest.predict_kernel import MAX_SIDE, pack_forest, predict_batch, predict_frame
 
 FORMAT = "vhgen-forest"
 FORMAT_VERSION = 1
@@ -153,7 +153,7 @@ class Predictor:
 
         0 = background: no measurement, or the forest says background. A single frame runs
         serially (one core); a batch runs frames in parallel over numba threads. The kernel
-        is :mod:`vhgen.forest.kernel`; sides up to 32767 px (else ForestError).
+        is :mod:`vhgen.forest.predict_kernel`; sides up to 32767 px (else ForestError).
         """
         d = np.ascontiguousarray(depth, dtype=np.uint16) if prepared else prepare_depth(depth)
         if d.ndim not in (2, 3):

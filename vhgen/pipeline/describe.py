@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.avatar import Body, build_avatar
-from vhgen.body.kernels import footprint as floor_footprint
-from vhgen.body.kernels import skin_points
+from vhgen.body.skin_kernels import footprint as floor_footprint
+from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import matrices_from_heads, posed_heads
 from vhgen.camera import sample_camera
 from vhgen.pipeline.job import Job
-from vhgen.scene.background import layout_background
+from vhgen.scene.background.people import layout_background
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.layout import layout_scene
 from vhgen.scene.placement import Disc
@@ -126,7 +126,7 @@ class FrameDescriber:
         """A frame composited into one of the job's real backgrounds: the camera is the
         background's (none is drawn; the sensor noise starts from the frame stream as
         it is), the background and the people's places come from the scene stream
-        (:func:`vhgen.scene.background.layout_background`), the people stand
+        (:func:`vhgen.scene.background.people.layout_background`), the people stand
         ``camera.distance_m`` from the camera."""
         job = self.job
         assert job.backgrounds is not None

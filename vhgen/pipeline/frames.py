@@ -1,7 +1,7 @@
 """Frame generation inside one process: describe, render, sensor, record, shard write.
 
 Per frame: :class:`~vhgen.pipeline.describe.FrameDescriber` builds the pure description
-from the job's plan, :class:`~vhgen.render.scene.SceneRenderer` draws its views, the sensor
+from the job's plan, :class:`~vhgen.render.scene_renderer.SceneRenderer` draws its views, the sensor
 model runs on the whole scene, and a :class:`~vhgen.store.record.FrameRecord` (the
 manifest row) is made from the description and the outputs.
 
@@ -77,7 +77,7 @@ class FrameGenerator:
     def __init__(self, job: Job, context=None, bodies: dict[int, Body] | None = None):
         from vhgen.render.context import create_context
         from vhgen.render.renderer import DepthLabelRenderer
-        from vhgen.render.scene import SceneRenderer
+        from vhgen.render.scene_renderer import SceneRenderer
 
         cfg = job.cfg
         self.job = job

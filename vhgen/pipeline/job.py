@@ -18,7 +18,7 @@ from vhgen.job_config import JobConfig
 from vhgen.mocap.retarget import RetargetMap, load_all_maps
 from vhgen.pipeline.plan import Plan, make_plan
 from vhgen.pipeline.poses import PoseSet, load_poses
-from vhgen.scene.background import Backgrounds, load_backgrounds
+from vhgen.scene.background.load import Backgrounds, load_backgrounds
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +58,7 @@ class Job:
 def prepare_job(cfg: JobConfig, *, max_frames: int | None = None,
                 asset_dir: str | Path | None = None) -> Job:
     """Read the real backgrounds (``scene.backgrounds``: floor and free floor of each,
-    see :func:`vhgen.scene.background.load_backgrounds`; a bad file is one warning line),
+    see :func:`vhgen.scene.background.load.load_backgrounds`; a bad file is one warning line),
     read, retarget and select the poses, build the base body and plan the frames.
 
     max_frames : only the plan's first N frames (the same frames, seeds and shards as the

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.camera import CameraPose
-from vhgen.scene.background_frame import PlacedBackground
+from vhgen.scene.background.background_frame import PlacedBackground
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import Disc
 from vhgen.scene.room import Room

@@ -4,7 +4,7 @@ placed on the floor, and the static geometry to draw.
 Everything here is drawn from the frame's *scene stream* (see
 :class:`~vhgen.scene.description.FrameDescription`), in a fixed order: the room, the
 number of people, each further person (avatar, pose, heading, then its spot), the number
-of props and each prop, then the clutter (:mod:`vhgen.scene.clutter_place`). A frame
+of props and each prop, then the clutter (:mod:`vhgen.scene.clutter.place`). A frame
 whose people do not all fit is laid out again from streams of its own (see
 :func:`layout_scene`). Posing a person needs a body, which this layer does not build:
 the caller passes a :class:`People`.
@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from vhgen.camera import CameraPose, Intrinsics
-from vhgen.scene.clutter_place import Obstacle, place_clutter
+from vhgen.scene.clutter.place import Obstacle, place_clutter
 from vhgen.scene.description import Person, PlacedClutter, PlacedProp
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import (

@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from vhgen.sensor.effects import CorrelationWindow, Registration, SpeckleFilter
-from vhgen.sensor.kernels import encode_raw11
+from vhgen.sensor.sensor_kernels import encode_raw11
 from vhgen.sensor.simulator import SensorModel, SensorOutput
 
 # how far (px) any shipped effect but the shadow bands reaches from a pixel: the

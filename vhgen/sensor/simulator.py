@@ -15,9 +15,9 @@ import numpy as np
 from vhgen.camera import pixel_rays
 from vhgen.sensor import stages as _stages  # noqa: F401  (registers the shipped stages)
 from vhgen.sensor import structured_light as _reference  # noqa: F401  (and the reference)
-from vhgen.sensor.kernels import encode_raw11, finish, sanitise
 from vhgen.sensor.pattern import PATTERN_PAD, dot_pattern
 from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.sensor.sensor_kernels import encode_raw11, finish, sanitise
 from vhgen.sensor.stage import Stage, compile_stage
 from vhgen.sensor.state import SensorState
 

@@ -22,7 +22,9 @@ from vhgen.sensor.effects import (
     Registration,
     SpeckleFilter,
 )
-from vhgen.sensor.kernels import (
+from vhgen.sensor.pattern import PATTERN_PAD
+from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.sensor.sensor_kernels import (
     add_noise_drop_inplace,
     add_noise_sigma_inplace,
     correlation_window,
@@ -34,8 +36,6 @@ from vhgen.sensor.kernels import (
     quantise_inplace,
     screen_space_shadow,
 )
-from vhgen.sensor.pattern import PATTERN_PAD
-from vhgen.sensor.sensor_config import SensorConfig
 from vhgen.sensor.stage import Stage
 from vhgen.sensor.state import NORMAL_TABLE, SensorState
 

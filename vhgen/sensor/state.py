@@ -16,7 +16,7 @@ import numpy as np
 
 from vhgen.assets import vhgen_home
 from vhgen.camera import Intrinsics
-from vhgen.sensor.kernels import invert_inplace, remove_pixels
+from vhgen.sensor.sensor_kernels import invert_inplace, remove_pixels
 
 # hole causes of the shipped effects (an added effect may record its own)
 HOLE_CAUSES = ("no_hit", "range", "distortion", "shadow", "dropout", "window", "noise",

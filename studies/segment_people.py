@@ -2,7 +2,7 @@
 rendered truth labels stand in for a forest's, so every loss is the stage's (planes,
 clusters, splitting, size and extent tests), by distance and group size.
 
-    python benchmarks/segment_people.py STORE [--frames 40] [--seed 0]
+    python studies/segment_people.py STORE [--frames 40] [--seed 0]
 
 STORE: a vhgen store with people (``instances`` array), e.g. one made from
 ``configs/forest/people_test.yaml``. Prints, for the stage before issue 27 (every plane

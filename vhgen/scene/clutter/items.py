@@ -1,14 +1,11 @@
-"""Procedural clutter: what makes a room look lived in (pure; the scene stream's generator).
+"""Clutter items: a kind's item built from its parameters, and the job's variant library
+(pure; the scene stream's generator).
 
-Shelves and bookcases full of books and things, plants (trunk, branches, leaves), stairs,
-TVs on stands, desks with a monitor and an office chair, floor lamps, radiators, windows
-(glass gives no return), curtains, doors open at an angle onto a corridor, boxes, bags,
-objects on the floor and on every surface, pictures and shelves on the walls, chairs
-standing free and coat stands hung with coats (person-sized, not people). Each kind
-is built from instanced unit primitives (:mod:`vhgen.scene.meshkit`) by a builder of
-:mod:`vhgen.scene.clutter_kinds`, from a parameter dict that rebuilds it exactly
-(:func:`build`); :mod:`vhgen.scene.clutter_place` puts the items against walls, in
-corners, on the walls and on the floor.
+:func:`sample_params` draws an item's sizes within its kind's ranges
+(:mod:`vhgen.scene.clutter.kinds`), :func:`build` runs the kind's builder
+(:mod:`vhgen.scene.clutter.builders`) on them into a :class:`ClutterShape` (the same mesh
+every time: the manifest's parameters rebuild it), and :func:`variant` keeps the job's
+shapes of each kind, built once per worker.
 """
 
 from __future__ import annotations
@@ -20,51 +17,14 @@ from types import MappingProxyType
 
 import numpy as np
 
-from vhgen.scene.clutter_kinds import BUILDERS, RANGES
+from vhgen.scene.clutter.kinds import clutter_kind, kind_index
 from vhgen.scene.meshkit import Kit
 from vhgen.scene.solids import rect
-
-CLUTTER_KINDS: tuple[str, ...] = tuple(RANGES)
-
-# Where each kind stands, with weights: "wall" (its back to a wall, anywhere along it),
-# "corner" (its back to a wall and a side to the next), "floor" (anywhere, any heading).
-# Wall-mounted kinds (shelf, picture, window, radiator) are "wall" kinds whose
-# footprints start above the floor; a door is a wall kind that cuts an opening.
-MODES: dict[str, tuple[tuple[str, float], ...]] = {
-    "bookcase": (("wall", 0.7), ("corner", 0.3)),
-    "shelf": (("wall", 1.0),),
-    "cabinet": (("wall", 0.8), ("corner", 0.2)),
-    "desk": (("wall", 0.7), ("corner", 0.3)),
-    "tv": (("wall", 1.0),),
-    "table": (("floor", 0.5), ("wall", 0.5)),
-    "plant": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
-    "stairs": (("corner", 0.6), ("wall", 0.4)),
-    "lamp": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
-    "radiator": (("wall", 1.0),),
-    "window": (("wall", 1.0),),
-    "curtain": (("wall", 0.5), ("corner", 0.5)),
-    "door": (("wall", 1.0),),
-    "boxes": (("wall", 0.4), ("corner", 0.3), ("floor", 0.3)),
-    "bag": (("wall", 0.4), ("floor", 0.6)),
-    "objects": (("floor", 0.6), ("wall", 0.4)),
-    "picture": (("wall", 1.0),),
-    "chair": (("floor", 0.6), ("wall", 0.2), ("corner", 0.2)),
-    "coat_stand": (("corner", 0.5), ("wall", 0.3), ("floor", 0.2)),
-}
-# A room rarely holds two staircases or three TVs: each item of a kind already drawn for
-# the frame multiplies that kind's weight by this (others by REPEAT_DEFAULT); a config
-# that lists one kind still gets all its items, as the weights are shares.
-REPEAT = {"stairs": 0.05, "tv": 0.05, "door": 0.1, "desk": 0.2, "table": 0.3}
-REPEAT_DEFAULT = 0.5
-NO_RETURN_KINDS = ("window",)  # their class (the glass) gives no measurement
-PIERCES_CEILING = ("stairs",)  # may rise above the walls (to an upper floor)
-# built about the y axis: moved back onto z >= 0
-_CENTRED = ("plant", "lamp", "chair", "coat_stand")
 
 
 @dataclass(frozen=True, eq=False)
 class ClutterShape:
-    """A clutter item in its own frame (see :mod:`vhgen.scene.clutter_kinds`): vertices
+    """A clutter item in its own frame (see :mod:`vhgen.scene.clutter.builders`): vertices
     (V, 3) float64, faces (T, 3) int64, per-face roles (T,) uint8 (meshkit BODY, OBJECT,
     WALL, FLOOR) and groups (T,) uint8; ``solids``: per group (polygon (P, 2) (x, z),
     y0, y1, inside); ``opening``: (x0, x1, y0, y1) of the hole a door cuts in its wall,
@@ -107,10 +67,10 @@ class ClutterShape:
 
 
 def sample_params(kind: str, rng: np.random.Generator, fill: float) -> dict[str, float]:
-    """The kind's top-level sizes, uniform in :data:`RANGES` (one draw each, from the scene
-    stream), the frame's ``fill`` (how full its surfaces are) and a ``seed`` for its
+    """The kind's top-level sizes, uniform in its record's ranges (one draw each, from the
+    scene stream), the frame's ``fill`` (how full its surfaces are) and a ``seed`` for its
     details."""
-    ranges = RANGES[kind]
+    ranges = clutter_kind(kind).ranges
     u = rng.uniform(size=len(ranges))
     p = {k: float(lo + ui * (hi - lo)) for (k, (lo, hi)), ui in zip(ranges.items(), u,
                                                                      strict=True)}
@@ -122,13 +82,12 @@ def sample_params(kind: str, rng: np.random.Generator, fill: float) -> dict[str,
 def build(kind: str, params: Mapping[str, float]) -> ClutterShape:
     """The item of ``kind`` with ``params`` (as :func:`sample_params` draws them, or as
     the manifest records them): the same mesh every time."""
-    if kind not in BUILDERS:
-        raise ValueError(f"unknown clutter kind {kind!r}")
+    rec = clutter_kind(kind)
     p = dict(params)
     kit = Kit()
-    explicit = BUILDERS[kind](kit, p, np.random.default_rng(int(p["seed"]))) or []
+    explicit = rec.builder(kit, p, np.random.default_rng(int(p["seed"]))) or []
     v, f, roles, groups = kit.build()
-    if kind in _CENTRED:  # about the y axis: its box centred in x, its back on z = 0
+    if rec.centred:  # about the y axis: its box centred in x, its back on z = 0
         lo, hi = v.min(0), v.max(0)
         v = v - np.array([(lo[0] + hi[0]) / 2, 0.0, lo[2]])
     solids = []
@@ -142,9 +101,7 @@ def build(kind: str, params: Mapping[str, float]) -> ClutterShape:
             continue
         lo, hi = v[idx].min(0), v[idx].max(0)
         solids.append((rect(lo[0], hi[0], lo[2], hi[2]), float(lo[1]), float(hi[1]), True))
-    opening = None
-    if kind == "door":
-        opening = (-p["w"] / 2, p["w"] / 2, 0.0, p["h"])
+    opening = rec.opening(p) if rec.opening is not None else None
     for a in (v, f, roles, groups):
         a.setflags(write=False)
     return ClutterShape(kind, MappingProxyType(p), v, f, roles, groups, tuple(solids),
@@ -158,12 +115,12 @@ def variant(kind: str, fill: tuple[float, float], library_seed: int, index: int
     parameters (sizes, ``fill`` drawn from its range, details) come from a generator of
     its own, so a worker builds each variant once and keeps it; the parameters rebuild it
     with :func:`build`. A frame draws which variants it shows."""
-    rng = np.random.default_rng([library_seed, CLUTTER_KINDS.index(kind), index])
+    rng = np.random.default_rng([library_seed, kind_index(kind), index])
     return build(kind, sample_params(kind, rng, float(rng.uniform(*fill))))
 
 
 def smallest(kind: str) -> ClutterShape:
     """The kind at the low end of every range (its smallest size), for load-time checks."""
-    p: dict[str, float] = {k: lo for k, (lo, _hi) in RANGES[kind].items()}
+    p: dict[str, float] = {k: lo for k, (lo, _hi) in clutter_kind(kind).ranges.items()}
     p.update(fill=0.0, seed=0)
     return build(kind, p)

@@ -1,14 +1,15 @@
 """Placing clutter in a room: against walls, in corners, on walls and on the floor (pure).
 
 The frame's items are drawn first (kind by weight, fewer repeats of a kind; parameters
-and mesh: :mod:`vhgen.scene.clutter`) and placed largest first, as furniture comes before
-the things between it. For each, :data:`CANDIDATES` placements are drawn at once, each in
-one of the kind's modes (:data:`vhgen.scene.clutter.MODES`): ``wall``: its back
-:data:`FLUSH_M` off a wall, centred on a stretch of wall the camera sees and no obstacle
-takes (:meth:`_Frame.wall_cdf`); ``corner``: the same, moved to the nearer end of that
-wall; ``floor``: anywhere in the camera's view, any heading. They are screened together:
+and mesh: :mod:`vhgen.scene.clutter.items`) and placed largest first, as furniture comes
+before the things between it. For each, :data:`CANDIDATES` placements are drawn at once,
+each in one of the modes of its kind's record (:mod:`vhgen.scene.clutter.kinds`): ``wall``:
+its back :data:`FLUSH_M` off a wall, centred on a stretch of wall the camera sees and no
+obstacle takes (:meth:`_Frame.wall_cdf`); ``corner``: the same, moved to the nearer end of
+that wall; ``floor``: anywhere in the camera's view, any heading. They are screened together:
 the footprints (:class:`~vhgen.scene.solids.Solid`, one per part of the item) inside the
-room, the item no higher than the walls (stairs excepted: they lead to an upper floor), at
+room, the item no higher than the walls (unless its record says it pierces the ceiling:
+stairs to an upper floor), at
 least :data:`VISIBLE_SHARE` of its bearings inside the camera's horizontal view and its
 nearest point :data:`MIN_RANGE_M` from the camera (clutter goes where the camera sees it,
 so ``count`` is what a frame shows), and apart from everything placed before (people and
@@ -25,16 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vhgen.scene.clutter import (
-    MODES,
-    PIERCES_CEILING,
-    REPEAT,
-    REPEAT_DEFAULT,
-    ClutterShape,
-    build,
-    sample_params,
-    variant,
-)
+from vhgen.scene.clutter.items import ClutterShape, build, sample_params, variant
+from vhgen.scene.clutter.kinds import KINDS
 from vhgen.scene.description import PlacedClutter
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import WALL_GAP_M, Disc
@@ -279,7 +272,7 @@ def _candidates(rng: np.random.Generator, shape: ClutterShape, fr: _Frame
     kind's modes, wall (K,) (-1 on the floor), and whether each is possible (K,). Wall
     spots are drawn where the camera looks; corners at the end of the wall nearer to a
     drawn spot; floor spots in the camera's view."""
-    modes = MODES[shape.kind]
+    modes = KINDS[shape.kind].modes
     u = rng.uniform(size=(CANDIDATES, 5))
     mode_cdf, mode_names = _MODE_CDF[shape.kind]
     mode = np.minimum(np.searchsorted(mode_cdf, u[:, 0], side="right"), len(modes) - 1)
@@ -327,7 +320,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     half_fov : half the horizontal field of view, radians; obstacles : what is placed
     already; people : every person's footprint, kept visible; tall_discs : props that
     hide people (as in :func:`vhgen.scene.layout.layout_scene`); library_seed : the seed
-    of the job's variants of each kind (see :func:`vhgen.scene.clutter.variant`).
+    of the job's variants of each kind (see :func:`vhgen.scene.clutter.items.variant`).
     """
     cfg = sc.clutter
     assert cfg is not None
@@ -335,7 +328,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
                 sc.min_visible_fraction)
     n_items = int(rng.integers(cfg.count[0], cfg.count[1] + 1))
     weights = np.array(cfg.weights, np.float64)
-    repeat = np.array([REPEAT.get(k, REPEAT_DEFAULT) for k in cfg.kinds])
+    repeat = np.array([KINDS[k].repeat for k in cfg.kinds])
     same = np.array([[a == b for b in cfg.kinds] for a in cfg.kinds])
     roles = sc.clutter_roles
     items: list[PlacedClutter] = []
@@ -366,7 +359,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
             continue
         k, solids = found
         t = _transform(float(yaw[k]), origin[k])
-        mode_name = MODES[kind][int(mode[k])][0]
+        mode_name = KINDS[kind].modes[int(mode[k])][0]
         items.append(PlacedClutter(kind, cfg.classes[pick], t, shape.params, mode_name,
                                    int(wall[k])))
         meshes.append(StaticMesh(f"clutter:{kind}", shape.vertices @ t[:3, :3].T + t[:3, 3],
@@ -383,8 +376,9 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(placed))
 
 
-_MODE_CDF = {k: (np.cumsum([w for _, w in m]) / sum(w for _, w in m), np.array([n for n, _ in m]))
-             for k, m in MODES.items()}
+# per kind: the cumulative weights of its modes and their names
+_MODE_CDF = {k.name: (np.cumsum([w for _, w in k.modes]) / sum(w for _, w in k.modes),
+                      np.array([n for n, _ in k.modes])) for k in KINDS.values()}
 
 
 def _floor_area(shape: ClutterShape) -> float:
@@ -407,7 +401,7 @@ def _first_fit(shape: ClutterShape, yaw: np.ndarray, origin: np.ndarray, ok: np.
                wall: np.ndarray, fr: _Frame) -> tuple[int, list[Solid]] | None:
     """The first candidate, in drawing order, that passes every test, and its solids."""
     room = fr.room
-    if shape.kind not in PIERCES_CEILING and shape.top > room.height_m:
+    if not KINDS[shape.kind].pierces_ceiling and shape.top > room.height_m:
         return None
     idx = np.flatnonzero(ok)
     yaw, origin, wall = yaw[idx], origin[idx], wall[idx]

@@ -1,9 +1,9 @@
 """What the frames teach: body-part forest accuracy vs data, depth, trees and sensor realism
 (the synthetic study), and what each realism measure buys on a real sensor (``--real``).
 
-    .venv/bin/python benchmarks/forest_curves.py [--quick] [--out out/forest_study]
+    .venv/bin/python studies/forest_curves.py [--quick] [--out out/forest_study]
         [--backend egl] [--workers N]
-    .venv/bin/python benchmarks/forest_curves.py --real [--quick] [--out docs/forest_study]
+    .venv/bin/python studies/forest_curves.py --real [--quick] [--out docs/forest_study]
         [--data DIR] [--frames 560] [--curve 560,1120,2240,4480]
 
 The real study is described in :func:`real_study`; what follows is the synthetic one.
@@ -33,19 +33,23 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 
-QUICK = {"train_step": 60, "train_avatars": 2, "test_step": 90, "test_avatars": 2,
-         "sizes": [8, 16, 32, 64, 128], "ablation_frames": 128,
-         "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
-                    "thresholds": 15, "min_samples": 8}}
-FULL = {"train_step": 20, "train_avatars": 4, "test_step": 30, "test_avatars": 3,
-        "sizes": [35, 70, 140, 280, 560, 1120, 2260], "ablation_frames": 560,
-        "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
-                   "thresholds": 25, "min_samples": 16}}
+# the plan of a run: frame steps and avatars of the generated stores, forest sizes, params
+QUICK: dict[str, Any] = {
+    "train_step": 60, "train_avatars": 2, "test_step": 90, "test_avatars": 2,
+    "sizes": [8, 16, 32, 64, 128], "ablation_frames": 128,
+    "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
+               "thresholds": 15, "min_samples": 8}}
+FULL: dict[str, Any] = {
+    "train_step": 20, "train_avatars": 4, "test_step": 30, "test_avatars": 3,
+    "sizes": [35, 70, 140, 280, 560, 1120, 2260], "ablation_frames": 560,
+    "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
+               "thresholds": 25, "min_samples": 16}}
 TRAIN_SENSORS = ("ideal", "kinect_v1_fast", "kinect_v1_full")
 TEST_SENSORS = ("kinect_v1_full", "ideal")
 

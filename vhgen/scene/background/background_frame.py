@@ -14,7 +14,7 @@ class FloorPlane:
     ``normal . X + height_m = 0``; ``normal`` (unit) points up, towards the camera, so
     ``height_m`` is the camera's height above the floor. ``inlier_fraction``: of the
     measured points (every 4th pixel of every 4th row), those on it (within 3 sigma of
-    the depth noise, facing along it: see :func:`vhgen.scene.background.estimate_floor`);
+    the depth noise, facing along it: see :func:`vhgen.scene.background.floor.estimate_floor`);
     ``rms_m``: their RMS distance to it."""
 
     normal: tuple[float, float, float]

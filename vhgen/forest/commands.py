@@ -1,6 +1,6 @@
 """``vhgen forest ...``: train, eval, label, export (registered by vhgen.cli).
 
-The learning-curve study is ``python benchmarks/forest_curves.py`` (it generates frames).
+The learning-curve study is ``python studies/forest_curves.py`` (it generates frames).
 """
 
 from __future__ import annotations
@@ -158,7 +158,7 @@ def read_label_input(path: str) -> Any:
     :func:`vhgen.depthfile.read_depth`) -> DepthFrame; ForestError when it is larger than
     forest inference takes. A malformed file is its DepthFileError (one line)."""
     from vhgen.depthfile import read_depth
-    from vhgen.forest.kernel import MAX_SIDE
+    from vhgen.forest.predict_kernel import MAX_SIDE
 
     frame = read_depth(path)
     h, w = frame.depth_mm.shape

@@ -1,6 +1,6 @@
 """The proof on real frames: what each realism measure buys, measured on a real sensor.
 
-Run through ``benchmarks/forest_curves.py --real [--quick] [--out DIR] [--data DIR]
+Run through ``studies/forest_curves.py --real [--quick] [--out DIR] [--data DIR]
 [--frames N] [--curve N,N,...]`` (the results in ``docs/forest_study/real_*`` come from
 ``--frames 560 --curve 280,560,1120``). Steps:
 
@@ -72,14 +72,16 @@ BEST = "all"
 # avatar-major, so a cut plan would hold fewer avatars); a setting of two configs takes
 # half from each. The ablation trains on `frames` of each setting (all of them), the curve
 # on seeded random subsets of the best setting's `curve_step` stores.
-QUICK = {"frames": 140, "frame_step": 80, "avatars": 1, "curve_step": 40, "curve_avatars": 2,
-         "curve": [70, 140, 280], "test_step": 40, "test_frames": 48,
-         "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
-                    "thresholds": 15, "min_samples": 8, "background_share": 0.5}}
-FULL = {"frames": 1120, "frame_step": 40, "avatars": 4, "curve_step": 10, "curve_avatars": 4,
-        "curve": [560, 1120, 2240, 4480, 8960], "test_step": 10, "test_frames": 240,
-        "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
-                   "thresholds": 25, "min_samples": 16, "background_share": 0.5}}
+QUICK: dict[str, Any] = {
+    "frames": 140, "frame_step": 80, "avatars": 1, "curve_step": 40, "curve_avatars": 2,
+    "curve": [70, 140, 280], "test_step": 40, "test_frames": 48,
+    "params": {"trees": 2, "depth": 14, "pixels_per_image": 300, "features": 100,
+               "thresholds": 15, "min_samples": 8, "background_share": 0.5}}
+FULL: dict[str, Any] = {
+    "frames": 1120, "frame_step": 40, "avatars": 4, "curve_step": 10, "curve_avatars": 4,
+    "curve": [560, 1120, 2240, 4480, 8960], "test_step": 10, "test_frames": 240,
+    "params": {"trees": 3, "depth": 20, "pixels_per_image": 300, "features": 300,
+               "thresholds": 25, "min_samples": 16, "background_share": 0.5}}
 
 
 def _merge(base: dict, patch: dict) -> dict:
@@ -136,7 +138,7 @@ def generate(cfg_path: Path, store: Path, frames: int | None, backend: str, work
 
 def real_scores(forest: Any, out_dir: Path | None = None) -> dict:
     """The forest on the check frames, alone and with the segmentation stage."""
-    from vhgen.forest.cli import labeller
+    from vhgen.forest.commands import labeller
     from vhgen.forest.realeval import evaluate_real, load_real_frames
 
     frames = load_real_frames(CHECK_PEOPLE, CHECK_NOBODY, MASKS)

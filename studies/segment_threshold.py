@@ -1,7 +1,7 @@
 """How the segmentation stage's ``min_body_fraction`` trades people kept against clutter
 passed, on build data: synthetic frames of the forest's own stores it was not trained on.
 
-    python benchmarks/segment_threshold.py FOREST.npz [--frames 60] [--seed 0]
+    python studies/segment_threshold.py FOREST.npz [--frames 60] [--seed 0]
         [--fractions 0.5,0.6,0.7,0.8,0.9]
 
 Draws ``--frames`` frames (seeded) of the stores the forest names in its metadata, leaving

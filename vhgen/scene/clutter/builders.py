@@ -1,10 +1,12 @@
-"""The clutter kinds: parameter ranges and builders (pure NumPy, see :mod:`vhgen.scene.meshkit`).
+"""The clutter builders: one function per kind that builds an item from unit primitives
+(pure NumPy, see :mod:`vhgen.scene.meshkit`); its record in :mod:`vhgen.scene.clutter.kinds`
+names it with everything else about the kind.
 
 Every builder works in the item's own frame: x along the wall it stands against (centred
 on x = 0), z from the wall (z = 0) into the room, y up from the floor, metres. Kinds that
 may also stand free (a plant, boxes) are built the same way; placement turns them.
-``p`` is the item's parameter dict (top-level sizes drawn from the scene stream, see
-:data:`RANGES`, plus ``fill`` and ``seed``); ``g`` is a generator seeded with
+``p`` is the item's parameter dict (top-level sizes drawn from the scene stream within the
+ranges of the kind's record, plus ``fill`` and ``seed``); ``g`` is a generator seeded with
 ``p["seed"]`` for the details (book widths, leaves): the parameters rebuild the item.
 A builder may return explicit footprints for some groups (a door leaf at an angle, the
 corridor behind a door); other groups get the box around their vertices.
@@ -13,49 +15,12 @@ corridor behind a door); other groups get the box around their vertices.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
 from vhgen.scene.meshkit import BODY, FLOOR, OBJECT, WALL, Kit, cylinder
 from vhgen.scene.solids import rect
-
-# per kind: parameter -> (low, high), drawn uniformly from the scene stream
-RANGES: dict[str, dict[str, tuple[float, float]]] = {
-    "bookcase": {"w": (0.6, 1.2), "d": (0.28, 0.4), "h": (1.1, 2.2), "spacing": (0.28, 0.4),
-                 "back": (0, 1)},
-    "shelf": {"w": (0.5, 1.2), "d": (0.18, 0.3), "y": (0.9, 1.5), "boards": (1, 3.999),
-              "spacing": (0.3, 0.42)},
-    "cabinet": {"w": (0.6, 1.8), "d": (0.35, 0.5), "h": (0.5, 1.1), "doors": (1, 4.999)},
-    "desk": {"w": (1.0, 1.6), "d": (0.55, 0.8), "h": (0.72, 0.76), "chair": (0, 1),
-             "monitor": (0.45, 0.7)},
-    "tv": {"w": (1.0, 1.8), "d": (0.35, 0.45), "h": (0.4, 0.6), "screen": (0.8, 1.45)},
-    "table": {"w": (0.8, 1.6), "d": (0.6, 1.0), "h": (0.45, 0.8)},
-    "plant": {"height": (0.5, 1.9), "pot_r": (0.1, 0.2), "pot_h": (0.15, 0.35),
-              "branches": (3, 9.999), "leaves": (5, 14.999), "leaf": (0.06, 0.2)},
-    "stairs": {"steps": (6, 11.999), "rise": (0.16, 0.2), "run": (0.24, 0.3),
-               "width": (0.75, 1.0), "open": (0, 1), "dir": (0, 1)},
-    "lamp": {"height": (1.3, 1.8), "shade_r": (0.15, 0.25), "shade_h": (0.18, 0.3),
-             "taper": (0.5, 0.95)},
-    "radiator": {"w": (0.5, 1.6), "h": (0.4, 0.7), "y": (0.08, 0.2), "d": (0.06, 0.12),
-                 "pitch": (0.045, 0.08)},
-    "window": {"w": (0.8, 2.0), "h": (1.0, 1.5), "sill": (0.7, 1.0), "frame": (0.05, 0.09),
-               "mullions": (0, 2.999), "sill_d": (0.1, 0.2)},
-    "curtain": {"w": (0.4, 1.4), "top": (2.0, 2.3), "bottom": (0.0, 0.3),
-                "period": (0.08, 0.16), "amplitude": (0.02, 0.06)},
-    "door": {"w": (0.78, 0.95), "h": (1.98, 2.1), "angle_deg": (0, 100), "hinge": (0, 1),
-             "corridor_d": (1.0, 3.0), "corridor_w": (0.2, 1.5)},
-    "boxes": {"w": (0.3, 0.7), "d": (0.25, 0.6), "h": (0.2, 0.5), "count": (1, 3.999)},
-    "bag": {"w": (0.3, 0.6), "h": (0.25, 0.5), "d": (0.15, 0.3), "handles": (0, 1)},
-    "objects": {"w": (0.4, 1.0), "d": (0.3, 0.7), "count": (3, 8.999)},
-    "picture": {"w": (0.3, 1.2), "h": (0.3, 0.9), "y": (1.3, 1.75), "t": (0.02, 0.05)},
-    # free-standing seats: a swivel chair (high curved back, maybe arms and a headrest)
-    # or an upholstered armchair, as big as a seated person
-    "chair": {"style": (0, 1), "w": (0.46, 0.62), "seat": (0.42, 0.52), "back": (0.45, 0.85),
-              "curve": (0.0, 0.5), "recline": (0.0, 0.3), "arms": (0, 1)},
-    # a coat stand with coats, bags and hats hanging from its hooks: person-sized
-    "coat_stand": {"height": (1.6, 1.9), "coats": (0, 3.999), "hooks": (3, 6.999),
-                   "coat_len": (0.5, 1.1)},
-}
 
 BOARD = 0.02  # shelf boards, cabinet sides
 
@@ -530,6 +495,11 @@ def door(kit: Kit, p: dict, g: np.random.Generator) -> list:
             (rect(min(x0, -w / 2 - fw), max(x1, w / 2 + fw), z0, 0.0), 0.0, ch, False)]
 
 
+def door_opening(p: Mapping[str, float]) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) of the hole a door of parameters ``p`` cuts in its wall."""
+    return (-p["w"] / 2, p["w"] / 2, 0.0, p["h"])
+
+
 def boxes(kit: Kit, p: dict, g: np.random.Generator) -> None:
     w, d, h = p["w"], p["d"], p["h"]
     y = 0.0
@@ -591,10 +561,3 @@ def objects(kit: Kit, p: dict, g: np.random.Generator) -> None:
 
 def picture(kit: Kit, p: dict, g: np.random.Generator) -> None:
     kit.box([p["w"], p["h"], p["t"]], [0, p["y"], p["t"] / 2 + 0.003], BODY)
-
-
-BUILDERS = {"bookcase": bookcase, "shelf": shelf, "cabinet": cabinet, "desk": desk, "tv": tv,
-            "table": table, "plant": plant, "stairs": stairs, "lamp": lamp,
-            "radiator": radiator, "window": window, "curtain": curtain, "door": door,
-            "boxes": boxes, "bag": bag, "objects": objects, "picture": picture,
-            "chair": chair, "coat_stand": coat_stand}

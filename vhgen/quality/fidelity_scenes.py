@@ -20,7 +20,7 @@ from vhgen.errors import RenderError
 from vhgen.mocap.bvh import read_bvh
 from vhgen.mocap.retarget import build_retargeter, detect_dialect, load_all_maps
 from vhgen.render.renderer import DepthLabelRenderer
-from vhgen.render.scene import SceneRenderer
+from vhgen.render.scene_renderer import SceneRenderer
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import WALL, StaticMesh, quad
 
@@ -110,7 +110,7 @@ def human_frame(ctx, intr: Intrinsics, baseline: float, asset_dir, motion_path,
                 frame: int = 100, distance: float = 2.5, wall: float | None = 3.5) -> Frame:
     """A posed MakeHuman body in front of a wall facing the camera at ``wall`` metres
     (``wall=None``: alone), drawn through the pipeline's render step
-    (:class:`~vhgen.render.scene.SceneRenderer`): person and wall in one target."""
+    (:class:`~vhgen.render.scene_renderer.SceneRenderer`): person and wall in one target."""
     body = build_body(asset_dir, LabelScheme.load("shotton31"))
     motion = read_bvh(motion_path)
     rt = build_retargeter(motion, body.rig, detect_dialect(motion, load_all_maps()))

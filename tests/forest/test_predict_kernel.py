@@ -10,7 +10,7 @@ from tests.forest.test_features import reference_feature
 from vhgen.errors import ForestError
 from vhgen.executor import InlinePool
 from vhgen.forest.features import BACKGROUND_MM, draw_offsets, prepare_depth
-from vhgen.forest.kernel import pack_forest, probe_indices
+from vhgen.forest.predict_kernel import pack_forest, probe_indices
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
 from vhgen.forest.trees import Forest, Predictor, truncate
 

@@ -23,7 +23,7 @@ from vhgen.realism.stats import FrameStats, frame_stats
 
 
 def _say(msg: str) -> None:
-    logging.getLogger("vhgen.bench").warning(msg)
+    logging.getLogger("vhgen.quality").warning(msg)
 
 
 def store_stats(store: str | Path, max_frames: int | None = None

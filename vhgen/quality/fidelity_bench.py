@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from vhgen.assets import resolve_asset_dir
-from vhgen.bench.scenes import Frame, human_frame, suite
 from vhgen.mocap.clips import builtin_motion_path
+from vhgen.quality.fidelity_scenes import Frame, human_frame, suite
 from vhgen.sensor.simulator import SensorConfig, SensorModel
 
 DEFAULT_CONFIGS = ("ideal", "kinect_v1_fast", "kinect_v1_full", "kinect_v1_exact_shadows")

@@ -5,14 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from vhgen.bench.scenes import suite
+from vhgen.quality.fidelity_scenes import suite
 from vhgen.sensor.sensor_config import SensorConfig
 
 F, B = 571.26, 0.075
 
 
 def test_bench_fidelity_quick(tmp_path):
-    from vhgen.bench.fidelity import bench_fidelity
+    from vhgen.quality.fidelity_bench import bench_fidelity
 
     res = bench_fidelity(tmp_path, quick=True, human=False,
                          configs=("ideal", "kinect_v1_full"))

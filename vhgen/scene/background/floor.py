@@ -1,13 +1,9 @@
-"""Real depth frames as backgrounds (pure): their floor, their free floor, and people
-placed on it.
+"""The floor of a real depth frame and its free floor (pure).
 
-A background is a real depth frame (read by :mod:`vhgen.depthfile`) of a room, taken by
-the camera the job's sensor model describes. Once per job (:func:`load_backgrounds`,
-called by ``prepare_job``) every frame is read, its floor plane estimated
-(:func:`estimate_floor`: RANSAC on the back-projected points, float64) and its free floor
-mapped (:func:`free_floor`); a frame without a floor or without free floor is reported in
-one line and left out. Per frame (:func:`layout_background`, from the frame's scene
-stream) a background is drawn and the people are placed on its free floor.
+:func:`estimate_floor`: the floor plane, RANSAC on the back-projected points (float64),
+with the depth noise's growth with distance in the residual scale; :func:`free_floor`: the
+grid of floor cells a person may stand on, and how much room each has. Both run once per
+background, when the job's backgrounds are read (:mod:`vhgen.scene.background.load`).
 
 World frame of a background (:meth:`FloorPlane.world_to_camera`): y up and y = 0 the real
 floor; the camera at (0, h, 0), h its height above the floor, with its optical axis
@@ -17,23 +13,12 @@ projected onto the floor along +z. The camera's pitch and roll are the floor's t
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vhgen.camera import CameraPose, Intrinsics, pitch_roll_deg, project
-from vhgen.errors import BackgroundError, ConfigError, DepthFileError
-from vhgen.scene.background_frame import FloorPlane, PlacedBackground
-from vhgen.scene.description import Person
-from vhgen.scene.placement import GAP_M, PLACEMENT_TRIES, Disc, visible_fraction, yaw_transform
-from vhgen.scene.scene_config import BackgroundSource, SceneConfig
-from vhgen.scene.truth import VISIBILITY_TOLERANCE_M
-
-if TYPE_CHECKING:
-    from vhgen.scene.layout import People
+from vhgen.camera import Intrinsics, project
+from vhgen.errors import BackgroundError
+from vhgen.scene.background.background_frame import FloorPlane
 
 # -- the floor --------------------------------------------------------------------------
 FLOOR_STEP_PX = 4  # the plane is fitted on every 4th pixel of every 4th row (~15k points)
@@ -67,13 +52,6 @@ OBSTACLE_TOP_M = 2.2  # points up to this height over the floor are in a person'
 MIN_OBSTACLE_POINTS = 3  # per cell: fewer are taken for noise of the floor
 GRID_HALF_WIDTH_M = 8.0
 GRID_DEPTH_M = 12.0
-# a background whose free floor holds no disc this wide is left out: a person standing
-# with the arms down needs about 0.4 m, and 9 cm more for the gap and the spot's jitter
-MIN_FREE_RADIUS_M = 0.5
-
-# -- per frame --------------------------------------------------------------------------
-BACKGROUND_DRAWS = 8  # backgrounds tried for the plan's person before another is drawn
-SUBSTITUTES = 8  # people drawn in its place when it fits no background drawn
 
 
 def _points(depth_mm: np.ndarray, intr: Intrinsics, step: int = 1) -> np.ndarray:
@@ -313,267 +291,10 @@ def _out_of_view(depth_mm: np.ndarray, intr: Intrinsics, w2c: np.ndarray, origin
         return (uv[..., 1] > rows[-1] + 0.5) & inside, front & ~inside
 
 
-# -- the job's backgrounds --------------------------------------------------------------
-def intrinsics_mismatch(given: Intrinsics | Sequence[float], sensor: Intrinsics) -> str | None:
-    """Why a background's intrinsics (an Intrinsics or fx, fy, cx, cy) are not the
-    sensor's, or None when they are: focal lengths within 0.2%, principal point within
-    1 px (less than 0.7 px anywhere in a 640 px image). People are rendered and sensed
-    with the sensor's camera, so the real frame must come from that camera."""
-    g = (given.fx, given.fy, given.cx, given.cy) if isinstance(given, Intrinsics) else tuple(given)
-    s = (sensor.fx, sensor.fy, sensor.cx, sensor.cy)
-    if (abs(g[0] - s[0]) <= 2e-3 * s[0] and abs(g[1] - s[1]) <= 2e-3 * s[1]
-            and abs(g[2] - s[2]) <= 1.0 and abs(g[3] - s[3]) <= 1.0):
-        return None
-    return (f"intrinsics fx {g[0]:g} fy {g[1]:g} cx {g[2]:g} cy {g[3]:g} are not the "
-            f"sensor's ({s[0]:g}, {s[1]:g}, {s[2]:g}, {s[3]:g}): people are rendered and "
-            "sensed with the sensor's camera, so a background must be taken by it (a "
-            "sensor fitted to these frames: vhgen sensor fit)")
-
-
-@dataclass(frozen=True, eq=False)
-class Backgrounds:
-    """A job's usable backgrounds, read once by :func:`load_backgrounds`.
-
-    depth_mm (N, H, W) uint16 and clearance (N, Z, X) uint8 cm (see :func:`free_floor`,
-    zero-padded to a common size) are single read-only arrays, so a job with hundreds of
-    backgrounds reaches its workers as two memory-mapped files (local workers) or shared
-    objects (Ray), not one copy per worker. origins (N, 2) float64: each grid's cell
-    [0, 0] centre (x, z). skipped: one line per file or entry left out.
-    """
-
-    files: tuple[str, ...]
-    class_names: tuple[str, ...]
-    floors: tuple[FloorPlane, ...]
-    depth_mm: np.ndarray
-    clearance: np.ndarray
-    origins: np.ndarray
-    skipped: tuple[str, ...] = ()
-
-    def __len__(self) -> int:
-        return len(self.files)
-
-    def get(self, i: int) -> PlacedBackground:
-        return PlacedBackground(i, self.files[i], self.floors[i], self.depth_mm[i],
-                                self.class_names[i])
-
-
-def _reachable(origin: np.ndarray, clearance: np.ndarray, reach: tuple[float, float]
+def reachable(origin: np.ndarray, clearance: np.ndarray, reach: tuple[float, float]
                ) -> np.ndarray:
     """(Z, X) bool: cells whose centre is within ``reach`` (m, on the floor) of the
     camera's foot (x = z = 0)."""
     zz, xx = np.indices(clearance.shape)
     d = np.hypot(origin[0] + xx * CELL_M, origin[1] + zz * CELL_M)
     return (d >= reach[0]) & (d <= reach[1])
-
-
-def load_backgrounds(sources: Sequence[BackgroundSource], intr: Intrinsics,
-                     reach: tuple[float, float], warn: Callable[[str], None],
-                     config: str | None = None) -> Backgrounds:
-    """Read every frame of ``sources`` (files and folders, see
-    :func:`vhgen.depthfile.depth_files`), check it, find its floor and free floor.
-
-    A frame of another size than the sensor's ``intr``, with other intrinsics (see
-    :func:`intrinsics_mismatch`; a PNG has the entry's given ones, or the sensor's), with
-    no floor, or whose free floor within ``reach`` holds no disc of MIN_FREE_RADIUS_M, or
-    that cannot be read, is one ``warn`` line naming the file, and is left out; a folder
-    that leaves nothing is one line naming its field. No usable frame at all:
-    ConfigError naming ``scene.backgrounds`` (of the config file ``config``).
-    """
-    from vhgen.depthfile import depth_files, read_depth
-
-    files, classes, floors, depths, grids, origins, skipped = [], [], [], [], [], [], []
-
-    def skip(msg: str) -> None:
-        skipped.append(msg)
-        warn(msg)
-
-    for i, src in enumerate(sources):
-        given = (Intrinsics(intr.width, intr.height, *src.intrinsics)
-                 if src.intrinsics is not None else intr)
-        found = 0
-        for f in depth_files([src.path]):
-            try:
-                frame = read_depth(f, given if f.suffix.lower() == ".png" else None)
-                h, w = frame.depth_mm.shape
-                if (w, h) != (intr.width, intr.height):
-                    raise BackgroundError(f, f"{w}x{h} px, the sensor's frames are "
-                                          f"{intr.width}x{intr.height}")
-                bad = intrinsics_mismatch(frame.intrinsics or given, intr)
-                if bad:
-                    raise BackgroundError(f, bad)
-                floor = estimate_floor(frame.depth_mm, intr, str(f))
-                origin, clear = free_floor(frame.depth_mm, intr, floor)
-                room = clear[_reachable(origin, clear, reach)]
-                widest = float(room.max(initial=0)) / 100.0
-                if widest < MIN_FREE_RADIUS_M:
-                    raise BackgroundError(f, f"no free floor: the widest free circle "
-                                          f"{reach[0]:g}-{reach[1]:g} m from the camera "
-                                          f"(camera.distance_m) has a radius of {widest:.2f}"
-                                          f" m (at least {MIN_FREE_RADIUS_M} m needed)")
-            except (DepthFileError, BackgroundError) as e:
-                skip(f"skipped background {e}")
-                continue
-            files.append(str(f))
-            classes.append(src.class_name)
-            floors.append(floor)
-            depths.append(frame.depth_mm)
-            grids.append(clear)
-            origins.append(origin)
-            found += 1
-        if not found and Path(src.path).is_dir():  # a file has said why in its line
-            skip(f"scene.backgrounds[{i}]: no usable depth frame in {src.path}")
-    if not files:
-        raise ConfigError(config, "scene.backgrounds", f"no usable background frame in "
-                          f"{len(sources)} entr{'y' if len(sources) == 1 else 'ies'} "
-                          f"({len(skipped)} line{'s' if len(skipped) != 1 else ''} above say "
-                          "why)")
-    gz = max(g.shape[0] for g in grids)
-    gx = max(g.shape[1] for g in grids)
-    clearance = np.zeros((len(grids), gz, gx), np.uint8)
-    for k, g in enumerate(grids):
-        clearance[k, :g.shape[0], :g.shape[1]] = g
-    depth = np.stack(depths)
-    for a in (depth, clearance):
-        a.setflags(write=False)
-    return Backgrounds(tuple(files), tuple(classes), tuple(floors), depth, clearance,
-                       np.array(origins, np.float64), tuple(skipped))
-
-
-# -- per frame: people on a background's free floor --------------------------------------
-@dataclass(frozen=True, eq=False)
-class BackgroundLayout:
-    """What a background frame holds: the background, its camera, the people placed on
-    its floor (instance order), what did not fit, and the plan's person when another took
-    its place (``planned``: avatar id and pose index; None when it was placed)."""
-
-    background: PlacedBackground
-    camera: CameraPose
-    people: tuple[Person, ...]
-    dropped: dict[str, int] = field(default_factory=dict)
-    planned: tuple[int, int] | None = None
-
-
-def real_visible_fraction(intr: Intrinsics, joints_cam: np.ndarray,
-                          depth_mm: np.ndarray) -> float:
-    """The fraction of joints (J, 3 camera frame) in the image and not behind a real
-    surface: the real depth at the joint's pixel is no measurement, or at least z -
-    VISIBILITY_TOLERANCE_M (the test of :func:`vhgen.scene.truth.joint_visibility`)."""
-    uv = project(intr, joints_cam)
-    ok = np.isfinite(uv).all(1)
-    px = np.where(ok[:, None], np.rint(np.nan_to_num(uv)), -1).astype(np.int64)
-    ok &= (px[:, 0] >= 0) & (px[:, 0] < intr.width) & (px[:, 1] >= 0) & (px[:, 1] < intr.height)
-    real = depth_mm[np.where(ok, px[:, 1], 0), np.where(ok, px[:, 0], 0)] / 1000.0
-    clear = (real == 0) | (real >= joints_cam[:, 2] - VISIBILITY_TOLERANCE_M)
-    return float((ok & clear).mean())
-
-
-class _Floor:
-    """One background's free floor during a frame's placement."""
-
-    def __init__(self, bgs: Backgrounds, index: int, intr: Intrinsics,
-                 reach: tuple[float, float], min_visible: float):
-        self.bg = bgs.get(index)
-        self.intr = intr
-        self.w2c = self.bg.floor.world_to_camera()
-        self.origin = bgs.origins[index]
-        self.clearance = bgs.clearance[index]
-        self.reachable = _reachable(self.origin, self.clearance, reach)
-        self.min_visible = min_visible
-        self.discs: list[Disc] = []
-
-    def place(self, rng: np.random.Generator, local: Person, heading: float,
-              instance: int) -> Person | None:
-        """``local`` (posed at the origin, with its footprint) turned by ``heading`` and
-        put on a free spot: its footprint within the free floor and GAP_M clear of the
-        people already placed, at least ``min_visible`` of its joints in view past real
-        surfaces, and every person at least ``min_visible`` of its width in view past the
-        others (:func:`vhgen.scene.placement.visible_fraction`). PLACEMENT_TRIES spots are
-        drawn among the cells that fit and tried in order; None when none passes."""
-        fp = local.footprint
-        assert fp is not None
-        jitter = math.sqrt(0.5) * CELL_M  # a spot moves up to this far from its cell centre
-        fits = self.reachable & (self.clearance >= math.ceil((fp.r + GAP_M + jitter) * 100))
-        zz, xx = np.nonzero(fits)
-        cx = self.origin[0] + xx * CELL_M
-        cz = self.origin[1] + zz * CELL_M
-        for d in self.discs:
-            far = np.hypot(cx - d.x, cz - d.z) >= fp.r + d.r + GAP_M + jitter
-            cx, cz = cx[far], cz[far]
-        if not len(cx):
-            return None
-        pick = rng.integers(len(cx), size=PLACEMENT_TRIES)
-        offset = rng.uniform(-0.5, 0.5, size=(PLACEMENT_TRIES, 2)) * CELL_M
-        eye = np.zeros(2)
-        centre = yaw_transform(0.0, -fp.x, -fp.z)
-        for k, (dx, dz) in zip(pick, offset, strict=True):
-            spot = Disc(float(cx[k] + dx), float(cz[k] + dz), fp.r)
-            t = yaw_transform(heading, spot.x, spot.z) @ centre
-            joints = local.joints @ t[:3, :3].T + t[:3, 3]
-            cam = joints @ self.w2c[:3, :3].T + self.w2c[:3, 3]
-            if real_visible_fraction(self.intr, cam, self.bg.depth_mm) < self.min_visible:
-                continue
-            everyone = [*self.discs, spot]
-            if any(visible_fraction(eye, d, [o for o in everyone if o is not d])
-                   < self.min_visible for d in everyone):
-                continue
-            self.discs.append(spot)
-            return Person(instance, local.avatar_id, local.pose_index, t @ local.bones,
-                          joints, local.offset, t, spot)
-        return None
-
-
-def layout_background(rng: np.random.Generator, scene: SceneConfig, bgs: Backgrounds,
-                      intr: Intrinsics, reach: tuple[float, float], first: Person,
-                      people_from: People) -> BackgroundLayout:
-    """One background frame, from the scene stream ``rng``: the number of people, then
-    the background and the plan's person ``first`` (posed at the origin, with its
-    footprint) on its free floor, up to BACKGROUND_DRAWS backgrounds (a heading each);
-    when it fits none, up to SUBSTITUTES people drawn from ``people_from`` take its place
-    (it counts as dropped); then each further person as
-    :func:`vhgen.scene.layout.layout_scene` draws them (avatar, pose, heading), on the
-    same background, or dropped and counted. ``reach``: the people's distance from the
-    camera on the floor (m)."""
-    n_people = int(rng.integers(scene.people[0], scene.people[1] + 1))
-    dropped = {"people": 0, "props": 0}
-    planned = None
-    floor, placed = None, None
-    for k in range(SUBSTITUTES + 1):
-        local, draws = first, BACKGROUND_DRAWS
-        if k:  # the plan's person fits no background drawn: another takes its place
-            a = int(rng.integers(people_from.num_avatars))
-            pose = int(rng.integers(people_from.num_poses))
-            local, draws = people_from.pose(1, a, pose), 2
-        for _ in range(draws):
-            floor = _Floor(bgs, int(rng.integers(len(bgs))), intr, reach,
-                           scene.min_visible_fraction)
-            placed = floor.place(rng, local, float(rng.uniform(-np.pi, np.pi)), 1)
-            if placed is not None:
-                break
-        if placed is not None:
-            if k:
-                dropped["people"] += 1
-                planned = (first.avatar_id, first.pose_index)
-            break
-    if placed is None or floor is None:
-        raise BackgroundError("scene.backgrounds", f"no person fits the free floor "
-                              f"{reach[0]:g}-{reach[1]:g} m from the camera "
-                              f"(camera.distance_m) of {BACKGROUND_DRAWS + 2 * SUBSTITUTES} "
-                              "backgrounds drawn for the plan's person and "
-                              f"{SUBSTITUTES} others")
-    people = [placed]
-    for k in range(2, n_people + 1):
-        a = int(rng.integers(people_from.num_avatars))
-        pose = int(rng.integers(people_from.num_poses))
-        heading = float(rng.uniform(-np.pi, np.pi))
-        p = floor.place(rng, people_from.pose(k, a, pose), heading, len(people) + 1)
-        if p is None:
-            dropped["people"] += 1
-        else:
-            people.append(p)
-    w2c = floor.w2c
-    pitch, roll = pitch_roll_deg(w2c)
-    fp = people[0].footprint
-    assert fp is not None
-    camera = CameraPose(w2c, float(np.degrees(np.arctan2(fp.x, fp.z))),
-                        float(np.hypot(fp.x, fp.z)), floor.bg.floor.height_m, pitch, roll)
-    return BackgroundLayout(floor.bg, camera, tuple(people), dropped, planned)
