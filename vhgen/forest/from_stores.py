@@ -106,18 +106,22 @@ def train_forest(stores: list[str], params: TrainParams, *, max_frames: int | No
 
 def person_stage_frames(forest: Forest, stores: list[str], count: int,
                         seed: int) -> list[tuple[str, int, int]]:
-    """``count`` frames of ``stores`` (seeded) that the part forest did not train on: when
-    ``stores`` are the forest's own training stores, the frames its selection left out."""
+    """``count`` frames of ``stores`` (seeded) that the part forest did not train on: the
+    frames of its own training stores that its selection took are left out."""
     infos = [store_info(s) for s in stores]
     check_compatible(infos)
-    every = select_frames(infos, None, 0)
-    used: set[int] = set()
-    own = [str(Path(s).resolve()) for s in stores]
-    if own == list(forest.meta.get("stores") or []):
+    used: set[tuple[str, int]] = set()
+    own = list(forest.meta.get("stores") or [])
+    if own and any(str(Path(s).resolve()) in own for s in stores):
+        if not all(Path(s).is_dir() for s in own):
+            raise ForestError(f"{own[0]}: the forest's training stores are needed to leave "
+                              "its training frames out of the person stage's; one is missing")
         params = forest.meta.get("params") or {}
-        used = {g for _, _, g in select_frames(infos, int(forest.meta.get("frames", 0)),
-                                               int(params.get("seed", 0)))}
-    rest = [t for t in every if t[2] not in used]
+        taken = select_frames([store_info(s) for s in own], int(forest.meta.get("frames", 0)),
+                              int(params.get("seed", 0)))
+        used = {(str(Path(p).resolve()), f) for p, f, _ in taken}
+    rest = [t for t in select_frames(infos, None, 0)
+            if (str(Path(t[0]).resolve()), t[1]) not in used]
     if not rest:
         raise ForestError(f"{stores[0]}: every frame of these stores trained the part forest; "
                           "the person stage needs others (train it with --max-frames, or "
