@@ -66,7 +66,7 @@ motions: [{m}/01_01.bvh, {m}/02_01.bvh]
 sensor: kinect_v1_full
 poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
 avatars: {{count: 2}}
-output: {{frames_per_shard: 3}}
+output: {{frames_per_shard: 3, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: osmesa}}
 num_workers: 2
 """
@@ -91,7 +91,9 @@ def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int
     """A store in vhgen's layout without rendering: depth, labels, instances, classes of
     seeded noise, and a manifest.parquet of a few columns of each kind (numbers, strings
     with nulls, fixed-size lists, list of structs; rows shuffled) with its parts. For
-    reader tests that need many frames or a store to damage."""
+    reader tests that need many frames or a store to damage. ``compression_level`` 3 is
+    the codec of every array of the stores vhgen wrote before the per-array levels (None:
+    today's levels)."""
     import numpy as np
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -100,7 +102,7 @@ def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int
 
     rng = np.random.default_rng(seed)
     create_store(path, num_frames=frames, height=height, width=width,
-                 frames_per_shard=frames_per_shard, compression_level=3,
+                 frames_per_shard=frames_per_shard, compression_level=compression_level,
                  attrs={"label_names": ["a", "b", "c"]}, codec=codec)
     for s in range(-(-frames // frames_per_shard)):
         n = min(frames_per_shard, frames - s * frames_per_shard)

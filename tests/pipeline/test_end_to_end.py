@@ -23,7 +23,7 @@ motions: [{m}/01_01.bvh, {m}/02_01.bvh, {m}/10_01.bvh, {tmp}/broken.bvh]
 sensor: kinect_v1_full
 poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
 avatars: {{count: 2}}
-output: {{frames_per_shard: 3}}
+output: {{frames_per_shard: 3, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: osmesa}}
 num_workers: 2
 """

@@ -32,12 +32,16 @@ import numpy as np
 
 from vhgen.scene.geometry import PERSON, SCENE_CLASSES
 from vhgen.store.manifest import manifest_form, read_manifest_table
-from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS, open_store
+from vhgen.store.zarr_store import (
+    ARRAYS,
+    MANIFEST_FILE,
+    MANIFEST_PARTS,
+    REQUIRED_ARRAYS,
+    open_store,
+)
 
-# array name -> dtype the contract requires; depth and labels are mandatory
-CONTRACT_ARRAYS = {"depth": "uint16", "labels": "uint8", "raw": "uint16",
-                   "instances": "uint8", "classes": "uint8"}
-REQUIRED_ARRAYS = ("depth", "labels")
+# array name -> dtype the contract requires; REQUIRED_ARRAYS are mandatory
+CONTRACT_ARRAYS = {name: dtype for name, (dtype, _, _) in ARRAYS.items()}
 
 
 @dataclass
