@@ -85,9 +85,27 @@ def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
     return tmp / "small.zarr"
 
 
+def unmerge_manifest(store: Path, drop: tuple[int, ...] = ()) -> None:
+    """Put a finished store back in the state of a run stopped before its merge: one
+    manifest part per shard (but the ``drop`` shards', as if never finished) from its
+    ``manifest.parquet``, which is removed."""
+    import numpy as np
+    import pyarrow.compute as pc
+
+    from vhgen.store.manifest import read_manifest, write_parquet
+
+    table = read_manifest(store)
+    (store / "manifest").mkdir(exist_ok=True)
+    for s in np.unique(table.column("shard").to_numpy()):
+        if int(s) not in drop:
+            write_parquet(table.filter(pc.equal(table.column("shard"), s)),
+                          store / "manifest" / f"part-{int(s):06d}.parquet")
+    (store / "manifest.parquet").unlink()
+
+
 def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int = 4,
                           height: int = 96, width: int = 128, seed: int = 0,
-                          codec: str = "zstd") -> Path:
+                          codec: str = "zstd", compression_level: int | None = 3) -> Path:
     """A store in vhgen's layout without rendering: depth, labels, instances, classes of
     seeded noise, and a manifest.parquet of a few columns of each kind (numbers, strings
     with nulls, fixed-size lists, list of structs; rows shuffled) with its parts. For

@@ -20,7 +20,9 @@ Contract (later work may add arrays and columns, never change these):
 Each array is sharded along frames: one shard holds ``frames_per_shard`` frames (one
 chunk per frame inside), and exactly one task writes each shard, whole, once. A shard is
 complete when its manifest part ``manifest/part-<shard>.parquet`` exists (written after
-the arrays), which is what resuming checks.
+the arrays), which is what resuming checks; the merge at the end writes
+``manifest.parquet`` and then removes the parts (a merged manifest marks its shards
+complete).
 """
 
 from __future__ import annotations
@@ -158,11 +160,21 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
 
 
 def completed_shards(path: str | Path) -> set[int]:
-    """Shards whose manifest part exists (their arrays were written before it)."""
+    """Shards whose manifest part exists (their arrays were written before it), and the
+    shards of a merged ``manifest.parquet`` (the merge removes the parts)."""
     parts = Path(path) / MANIFEST_PARTS
-    if not parts.is_dir():
-        return set()
-    return {int(p.stem.split("-")[1]) for p in parts.glob("part-*.parquet")}
+    done = {int(p.stem.split("-")[1]) for p in parts.glob("part-*.parquet")}
+    merged = Path(path) / MANIFEST_FILE
+    if merged.is_file():
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        try:
+            shards = pq.read_table(merged, columns=["shard"]).column("shard")
+        except (OSError, pa.ArrowException):
+            return done  # unreadable: its shards are rendered again, then merged anew
+        done |= {int(s) for s in np.unique(shards.to_numpy())}
+    return done
 
 
 def clean_partials(path: str | Path) -> int:
