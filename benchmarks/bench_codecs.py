@@ -1,7 +1,7 @@
 """Bytes per frame and encode / decode time of each array under candidate codecs.
 
     python benchmarks/bench_codecs.py STORE [--frames 64] [--arrays depth labels ...]
-        [--codecs zstd-3 blosc-zstd-5-shuffle ...]
+        [--codecs zstd-3 blosc-zstd-5-shuffle ...] [--against OTHER_STORE]
 
 Reads up to ``--frames`` frames of each array of a finished store (for example one made
 by ``vhgen generate configs/scenes/cluttered_room.yaml --max-frames 128``) and compresses
@@ -13,7 +13,9 @@ writes and reads. Times are one core: blosc's own threads are off, as they are i
 store reader's decode threads. The candidates of an array take turns for ``--repeat``
 passes over the frames and each cell is a candidate's fastest pass. ``x store``: the
 candidate's bytes over the store's own for that array (its inner chunks, from the shard
-indexes).
+indexes). ``--against`` compares two stores of the same frames written with different
+codecs instead: ms per frame to decode each array through the training reader
+(``vhgen.store.shards.ShardReader``, one thread), the stores taking turns.
 """
 
 from __future__ import annotations
@@ -104,6 +106,25 @@ def measure(frames: np.ndarray, names: list[str], repeat: int
             for n in names}
 
 
+def read_ms(stores: list[Path], names: list[str], frames: int, repeat: int
+            ) -> dict[tuple[Path, str], float]:
+    """(store, array) -> ms per frame to decode the first ``frames`` frames of each array
+    through :class:`vhgen.store.shards.ShardReader` (the training reader's path, one
+    thread), the stores taking turns, each cell its fastest pass."""
+    from vhgen.store.shards import ShardReader
+
+    readers = {s: ShardReader(s, names, threads=1) for s in stores}
+    best = {(s, n): np.inf for s in stores for n in names}
+    for _ in range(repeat):
+        for s, reader in readers.items():
+            for n in names:
+                out = reader.empty(n, frames)
+                t0 = time.perf_counter()
+                reader.read_into([(n, f, out[f]) for f in range(frames)])
+                best[s, n] = min(best[s, n], time.perf_counter() - t0)
+    return {k: 1e3 * v / frames for k, v in best.items()}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("store", type=Path)
@@ -111,6 +132,9 @@ def main() -> None:
     ap.add_argument("--arrays", nargs="*", help="default: every array of the store")
     ap.add_argument("--codecs", nargs="*", help="candidates (default: a set per dtype)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--against", type=Path, help="another store of the same frames: "
+                    "instead of the candidates, decode both stores' arrays through the "
+                    "store reader, side by side")
     args = ap.parse_args()
 
     import numcodecs.blosc
@@ -122,6 +146,19 @@ def main() -> None:
     with warnings.catch_warnings():  # the manifest and report files are not zarr nodes
         warnings.simplefilter("ignore")
         names = args.arrays or sorted(root.array_keys())
+    if args.against:
+        stores = [args.store, args.against]
+        names = [n for n in names if (args.against / n / "zarr.json").is_file()]
+        n_frames = min(args.frames, root[names[0]].shape[0])
+        ms = read_ms(stores, names, n_frames, max(args.repeat, 7))
+        print(f"decode ms per frame, first {n_frames} frames, ShardReader, one thread")
+        print("| array | " + " | ".join(str(s) for s in stores) + " |")
+        print("|---|" + "---:|" * len(stores))
+        for n in [*names, "all"]:
+            cells = [sum(ms[s, m] for m in names) if n == "all" else ms[s, n]
+                     for s in stores]
+            print(f"| {n} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+        return
     print(f"{args.store}: first {args.frames} frames; bytes and ms per frame, one core")
     print("| array     | codec                   |   kB | x store | encode ms | decode ms |")
     print("|-----------|-------------------------|------|---------|-----------|-----------|")
