@@ -211,7 +211,7 @@ def main() -> None:
         print(f"{name:42s} {count:7d} {sec:9.3f} {count / max(sec, 1e-9):10.1f} "
               f"{1000 * sec / count:9.2f}")
     print(f"zarr size: {mb / (4 * cfg.frames_per_shard):.2f} MB/frame (depth, labels, "
-          f"instances, classes; zstd {cfg.compression_level})")
+          f"instances, classes; zstd level {cfg.compression_level or 'per array'})")
     for line in summary:
         print(line)
 
@@ -311,7 +311,7 @@ def _scene_rows(scene_paths, backend, gen, num_frames, rows, asset_dir) -> list[
             create_store(stores[-1], num_frames=(shards + 1) * k,
                          height=c.sensor.intrinsics.height, width=c.sensor.intrinsics.width,
                          frames_per_shard=k, compression_level=c.compression_level,
-                         attrs={}, raw11=c.sensor.encoding.raw11)
+                         attrs={}, arrays=c.arrays)
         for sh in range(shards + 1):
             for name, g, store in zip(names, gens, stores, strict=True):
                 t = time.perf_counter()
@@ -419,7 +419,7 @@ def background_rows(bg_path, scene_path, backend, num_frames, asset_dir
                 create_store(stores[-1], num_frames=total, height=c.sensor.intrinsics.height,
                              width=c.sensor.intrinsics.width, frames_per_shard=k,
                              compression_level=c.compression_level, attrs={},
-                             raw11=c.sensor.encoding.raw11)
+                             arrays=c.arrays)
             for sh in range(shards + 1):
                 for j, g in enumerate(gens):
                     t0 = time.perf_counter()

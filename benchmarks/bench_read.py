@@ -1,7 +1,7 @@
 """How fast a store reads for training: frames/s by order, arrays and reader, beside zarr.
 
     python benchmarks/bench_read.py [--store STORE] [--frames 256] [--seconds 1.5]
-        [--workers 2] [--batch 32] [--threads N]
+        [--workers 2] [--batch 32] [--threads N] [--arrays depth labels ...]
 
 Without ``--store`` it first makes one: the recommended training scene
 (configs/forest/people_room.yaml: shards of 16 frames, zstd 3, or ``--codec lz4``)
@@ -11,8 +11,9 @@ file is read once before measuring, so all rows see a warm page cache.
 Rows: three orders, each over every frame once at most (one epoch), stopped after
 ``--seconds``: *random* (a seeded permutation of the positions), *sampler*
 (``ds.sampler()``: shard by shard, shuffled) and *stream* (``ds.stream()``: shuffled shard
-order through a shuffle buffer); two selections: all arrays with the manifest row (or
-columns, for batches), and depth+labels (still with the manifest); readers: plain zarr
+order through a shuffle buffer); two selections: all arrays (or those of ``--arrays``)
+with the manifest row (or columns, for batches), and depth+labels (still with the
+manifest); readers: plain zarr
 (``group[name][frame]`` per frame and array, no manifest; whole-shard slices for the
 stream order), ``ds[i]``, ``ds.get_batch`` of ``--batch`` positions of the order, and
 ``ds.stream(batch_size=--batch)``. Columns: one process (``--threads`` decode threads,
@@ -167,7 +168,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="processes of the pool")
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--threads", type=int, default=None, help="decode threads, one process")
+    ap.add_argument("--arrays", nargs="*", help="the arrays of the all+manifest rows "
+                    "(default: every array of the store; to compare stores that hold "
+                    "different arrays)")
     args = ap.parse_args()
+    selections = {**SELECTIONS, "all+manifest": tuple(args.arrays) if args.arrays else None}
 
     tmp = None
     if args.store:
@@ -181,7 +186,7 @@ def main() -> None:
     try:
         import vhgen.dataset as vd
 
-        ds = vd.open(store)
+        ds = vd.open(store, arrays=selections["all+manifest"])
         for f in sorted(store.glob("*/c/**/*")):  # warm the page cache
             if f.is_file():
                 f.read_bytes()
@@ -191,7 +196,7 @@ def main() -> None:
         head = (f"| order   | arrays       | reader         | 1 process | pool of {args.workers} |")
         print(head)
         print("|" + "|".join("-" * (len(c)) for c in head.split("|")[1:-1]) + "|")
-        for sel, arrays in SELECTIONS.items():
+        for sel, arrays in selections.items():
             for order, reader in ROWS:
                 one = pool_rate(str(store), order, reader, arrays, args.seconds, args.batch,
                                 1, args.threads)

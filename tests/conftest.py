@@ -66,7 +66,7 @@ motions: [{m}/01_01.bvh, {m}/02_01.bvh]
 sensor: kinect_v1_full
 poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
 avatars: {{count: 2}}
-output: {{frames_per_shard: 3}}
+output: {{frames_per_shard: 3, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: osmesa}}
 num_workers: 2
 """
@@ -85,13 +85,33 @@ def small_store(tmp_path_factory, shared_mocap, asset_dir) -> Path:
     return tmp / "small.zarr"
 
 
+def unmerge_manifest(store: Path, drop: tuple[int, ...] = ()) -> None:
+    """Put a finished store back in the state of a run stopped before its merge: one
+    manifest part per shard (but the ``drop`` shards', as if never finished) from its
+    ``manifest.parquet``, which is removed."""
+    import numpy as np
+    import pyarrow.compute as pc
+
+    from vhgen.store.manifest import read_manifest, write_parquet
+
+    table = read_manifest(store)
+    (store / "manifest").mkdir(exist_ok=True)
+    for s in np.unique(table.column("shard").to_numpy()):
+        if int(s) not in drop:
+            write_parquet(table.filter(pc.equal(table.column("shard"), s)),
+                          store / "manifest" / f"part-{int(s):06d}.parquet")
+    (store / "manifest.parquet").unlink()
+
+
 def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int = 4,
                           height: int = 96, width: int = 128, seed: int = 0,
-                          codec: str = "zstd") -> Path:
+                          codec: str = "zstd", compression_level: int | None = 3) -> Path:
     """A store in vhgen's layout without rendering: depth, labels, instances, classes of
     seeded noise, and a manifest.parquet of a few columns of each kind (numbers, strings
     with nulls, fixed-size lists, list of structs; rows shuffled) with its parts. For
-    reader tests that need many frames or a store to damage."""
+    reader tests that need many frames or a store to damage. ``compression_level`` 3 is
+    the codec of every array of the stores vhgen wrote before the per-array levels (None:
+    today's levels)."""
     import numpy as np
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -100,7 +120,7 @@ def write_synthetic_store(path: Path, *, frames: int = 40, frames_per_shard: int
 
     rng = np.random.default_rng(seed)
     create_store(path, num_frames=frames, height=height, width=width,
-                 frames_per_shard=frames_per_shard, compression_level=3,
+                 frames_per_shard=frames_per_shard, compression_level=compression_level,
                  attrs={"label_names": ["a", "b", "c"]}, codec=codec)
     for s in range(-(-frames // frames_per_shard)):
         n = min(frames_per_shard, frames - s * frames_per_shard)

@@ -22,6 +22,12 @@ def test_shipped_configs_load():
     ("name: x\nmotions: [a.bvh]\nsensor: nosuch\n", "sensor"),
     ("name: x\nmotions: [a.bvh]\nseed: -1\n", "seed"),
     ("name: x\nmotions: [a.bvh]\noutput: {codec: gzip}\n", "output.codec"),
+    ("name: x\nmotions: [a.bvh]\noutput: {arrays: [depth, labels, normals]}\n",
+     "output.arrays"),
+    ("name: x\nmotions: [a.bvh]\noutput: {arrays: [depth, classes]}\n", "output.arrays"),
+    ("name: x\nmotions: [a.bvh]\noutput: {arrays: depth}\n", "output.arrays"),
+    ("name: x\nmotions: [a.bvh]\nsensor: ideal\noutput: {arrays: [depth, labels, raw]}\n",
+     "output.arrays"),
     ("name: x\nmotions: [a.bvh\n", "line"),
 ])
 def test_bad_configs_name_file_and_field(tmp_path, text, field):
@@ -49,6 +55,27 @@ def test_sensor_config_errors_name_the_field(tmp_path, old, new, field):
     with pytest.raises(ConfigError) as ei:
         SensorConfig.load(p)
     assert field in str(ei.value) and str(p) in str(ei.value)
+
+
+def test_output_arrays(tmp_path):
+    """raw is written only when asked for; the names come back in the store's order; a
+    wrong name is one line naming the field and the known arrays."""
+    p = tmp_path / "job.yaml"
+    p.write_text("name: x\nmotions: [a.bvh]\nsensor: openni_525\n")
+    cfg = JobConfig.load(p)  # the sensor keeps raw11, the store does not unless asked
+    assert cfg.sensor.encoding.raw11 and cfg.arrays == ("depth", "labels", "instances",
+                                                        "classes")
+    assert cfg.compression_level is None  # each array's own level
+    p.write_text("name: x\nmotions: [a.bvh]\nsensor: openni_525\n"
+                 "output: {arrays: [raw, labels, depth], compression_level: 5}\n")
+    cfg = JobConfig.load(p)
+    assert cfg.arrays == ("depth", "labels", "raw") and cfg.compression_level == 5
+    p.write_text("name: x\nmotions: [a.bvh]\noutput: {arrays: [depth, labels, normals]}\n")
+    with pytest.raises(ConfigError) as ei:
+        JobConfig.load(p)
+    msg = str(ei.value)
+    assert "\n" not in msg and "output.arrays" in msg and "'normals'" in msg
+    assert "depth, labels, instances, classes, raw" in msg
 
 
 def test_output_codec(tmp_path):

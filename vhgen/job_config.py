@@ -25,6 +25,7 @@ from vhgen.mocap.clips import BUILTIN_MOTION
 from vhgen.scene.geometry import MAX_SCENE_CLASSES
 from vhgen.scene.scene_config import SceneConfig, parse_scene
 from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.store.zarr_store import ARRAYS, DEFAULT_ARRAYS, REQUIRED_ARRAYS
 from vhgen.yamlio import check_keys, find_config, load_yaml
 from vhgen.yamlio import number as _num
 from vhgen.yamlio import number_range as _range
@@ -77,7 +78,7 @@ class JobConfig:
     avatars: AvatarConfig
     camera: CameraConfig
     frames_per_shard: int
-    compression_level: int
+    compression_level: int | None  # output.compression_level: every array's zstd level
     backend: str
     skinning: str
     num_workers: int
@@ -86,6 +87,7 @@ class JobConfig:
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
     codec: str = "zstd"  # output.codec: zstd (smallest) or lz4 (fastest to read)
+    arrays: tuple[str, ...] = DEFAULT_ARRAYS  # output.arrays: the arrays the store holds
 
     @property
     def class_names(self) -> tuple[str, ...]:
@@ -155,8 +157,8 @@ class JobConfig:
                                   f"carried things: the scene has {len(names)} classes")
             avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
-        check_keys(out, {"frames_per_shard", "compression_level", "codec"}, set(), path,
-                   "output.")
+        check_keys(out, {"frames_per_shard", "compression_level", "codec", "arrays"}, set(),
+                   path, "output.")
         codec = out.get("codec", "zstd")
         if codec not in ("zstd", "lz4"):
             raise ConfigError(path, "output.codec", f"must be zstd or lz4, got {codec!r}")
@@ -202,6 +204,7 @@ class JobConfig:
             sensor = SensorConfig.load(refs["sensor"])
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
+        arrays = _arrays(out.get("arrays", list(DEFAULT_ARRAYS)), sensor, path)
         if scene.backgrounds:
             _check_background_sensor(scene, sensor, path)
         else:
@@ -218,9 +221,29 @@ class JobConfig:
             frames_per_shard=_num(out, "frames_per_shard", path, "output.", lo=1, hi=4096,
                                   integer=True, default=16),
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
-                                   integer=True, default=3),
+                                   integer=True) if "compression_level" in out else None,
             backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
-            source=str(path), gpus_per_worker=gpus, codec=codec)
+            source=str(path), gpus_per_worker=gpus, codec=codec, arrays=arrays)
+
+
+def _arrays(value: Any, sensor: SensorConfig, src) -> tuple[str, ...]:
+    """``output.arrays``: the store's arrays to write, in the store's order; depth and
+    labels always, ``raw`` only from a sensor that keeps raw11."""
+    field_name = "output.arrays"
+    if not isinstance(value, list) or not all(isinstance(a, str) for a in value):
+        raise ConfigError(src, field_name, f"must be a list of array names, got {value!r}")
+    unknown = [a for a in value if a not in ARRAYS]
+    if unknown:
+        raise ConfigError(src, field_name, f"unknown array {unknown[0]!r} (known: "
+                          f"{', '.join(ARRAYS)})")
+    missing = [a for a in REQUIRED_ARRAYS if a not in value]
+    if missing:
+        raise ConfigError(src, field_name, f"must hold {' and '.join(REQUIRED_ARRAYS)} "
+                          f"(every store has them), {missing[0]!r} is missing")
+    if "raw" in value and not sensor.encoding.raw11:
+        raise ConfigError(src, field_name, f"raw: the sensor {sensor.name!r} keeps no raw "
+                          "disparity (its encode effect has no raw11: true)")
+    return tuple(a for a in ARRAYS if a in value)
 
 
 def _camera(ca: dict, src) -> CameraConfig:

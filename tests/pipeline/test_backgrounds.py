@@ -47,7 +47,7 @@ scene:
   backgrounds: [{bg}]
   people: [1, 3]
   min_visible_fraction: 0.3
-output: {{frames_per_shard: 4}}
+output: {{frames_per_shard: 4, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: osmesa}}
 num_workers: {workers}
 """

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import unmerge_manifest
 from tests.pipeline.faulty_worker import run_faulty
 from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
@@ -23,7 +24,7 @@ motions: [{m}/01_01.bvh, {m}/02_01.bvh, {m}/10_01.bvh, {tmp}/broken.bvh]
 sensor: kinect_v1_full
 poses: {{frame_step: 400, skip_first: 1, max_per_motion: 3}}
 avatars: {{count: 2}}
-output: {{frames_per_shard: 3}}
+output: {{frames_per_shard: 3, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: osmesa}}
 num_workers: 2
 """
@@ -195,8 +196,7 @@ def test_resume_finishes_an_interrupted_run(smoke, shared_mocap):
     tmp, cfg, _ = smoke
     cut = tmp / "cut.zarr"
     shutil.copytree(tmp / "two.zarr", cut)
-    (cut / "manifest" / "part-000001.parquet").unlink()
-    (cut / "manifest.parquet").unlink()
+    unmerge_manifest(cut, drop=(1,))
     (cut / "depth" / "c" / "stray.partial").parent.mkdir(parents=True, exist_ok=True)
     (cut / "depth" / "c" / "stray.partial").write_bytes(b"junk")
     summary = run_job(cfg, cut, resume=True)
@@ -206,6 +206,9 @@ def test_resume_finishes_an_interrupted_run(smoke, shared_mocap):
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
     man = pq.read_table(cut / "manifest.parquet")
     assert man.column("frame").to_pylist() == list(range(10))
+    assert not (cut / "manifest").exists()  # merged: the parts are gone, one copy left
+    again = run_job(cfg, cut, resume=True)  # a finished store: nothing to render
+    assert again.written == 0 and pq.read_table(cut / "manifest.parquet").equals(man)
     with pytest.raises(Exception, match="exists"):
         run_job(cfg, cut)  # neither resume nor overwrite: refuse to clobber
 

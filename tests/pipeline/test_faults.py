@@ -10,11 +10,13 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import unmerge_manifest
 from tests.pipeline.faulty_worker import run_faulty
 from vhgen.cli import main
 from vhgen.errors import StoreError
 from vhgen.job_config import JobConfig
 from vhgen.pipeline.driver import run_job
+from vhgen.store.zarr_store import completed_shards
 
 pytestmark = pytest.mark.slow
 
@@ -101,10 +103,10 @@ def test_real_full_disk_then_resume(tmp_path, tmpfs, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert "No space left on device" in err and "--resume" in err and "Traceback" not in err
-    kept = _parts(out)
     remount("size=16m")
     assert main([*argv, "--resume"]) == 0
-    assert len(_parts(out)) == 6 and kept <= _parts(out)
+    # merged: manifest.parquet holds every shard and is the one copy (no parts left)
+    assert completed_shards(out) == set(range(6)) and not _parts(out)
     import zarr
 
     lab = zarr.open_group(str(out), mode="r")["labels"][:]
@@ -204,9 +206,10 @@ def test_damaged_part_is_rendered_again_on_resume(tmp_path):
     run_job(cfg, out, max_frames=12, executor="local")
     rows = pq.read_table(out / "manifest.parquet").to_pylist()
     before = {k: _shard_bytes(out, k) for k in range(3)}
+    assert not (out / "manifest").exists()  # the merge removed the parts
+    unmerge_manifest(out)  # as if stopped before the merge, with part 2 damaged
     part = out / "manifest" / "part-000002.parquet"
     part.write_bytes(part.read_bytes()[:100])
-    (out / "manifest.parquet").unlink()
     summary = run_job(cfg, out, max_frames=12, resume=True, executor="local")
     assert summary.written == 1
     assert {k: _shard_bytes(out, k) for k in range(3)} == before

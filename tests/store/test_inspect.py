@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from tests.conftest import unmerge_manifest
 from vhgen.cli import main
 from vhgen.store.inspect import inspect_store
 
@@ -150,8 +151,7 @@ def test_changed_depth_pixel_and_out_of_range_label(damaged, capsys):
 
 
 def test_missing_manifest_and_part(damaged, capsys):
-    (damaged / "manifest.parquet").unlink()
-    (damaged / "manifest" / "part-000001.parquet").unlink()
+    unmerge_manifest(damaged, drop=(1,))
     lines = _defects(damaged, capsys)
     assert lines == [
         "DEFECT manifest.parquet missing (job not finished? run 'vhgen generate ... --resume')",

@@ -68,6 +68,34 @@ def test_lz4_store_decodes_to_the_same_arrays(store, lz4_store):
     assert size[lz4_store] != size[store]  # really another codec
 
 
+def test_stores_of_the_old_codecs_read_the_same(store, tmp_path):
+    """A store with the codecs vhgen wrote before (zstd 3 on every array: ``store``) and
+    one with today's per-array levels hold the same values, read through zarr and the
+    shard reader; each array's zarr.json names its codec and level."""
+    import json
+
+    from vhgen.store.zarr_store import ARRAYS
+
+    new = write_synthetic_store(tmp_path / "new.zarr", frames=22, frames_per_shard=4,
+                                compression_level=None)
+    truth = _zarr(store)
+    assert all(np.array_equal(a, truth[n]) for n, a in _zarr(new).items())
+    for path, level in ((store, {n: 3 for n in truth}),
+                        (new, {n: ARRAYS[n][2] for n in truth})):
+        for name in truth:
+            meta = json.loads((path / name / "zarr.json").read_text())
+            inner = meta["codecs"][0]["configuration"]["codecs"]
+            assert inner[-1] == {"name": "zstd",
+                                 "configuration": {"level": level[name], "checksum": False}}
+        reader = ShardReader(path, list(truth), threads=2)
+        frames = np.random.default_rng(1).permutation(22)
+        for name, want in truth.items():
+            out = reader.empty(name, len(frames))
+            reader.read_into([(name, int(f), out[k]) for k, f in enumerate(frames)])
+            assert np.array_equal(out, want[frames])
+        reader.close()
+
+
 def test_other_layouts_read_through_zarr(tmp_path):
     import zarr
 

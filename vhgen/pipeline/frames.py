@@ -189,7 +189,8 @@ class FrameGenerator:
         n = stop - start
         depth = np.zeros((n, h, w), np.uint16)
         ids = {k: np.zeros((n, h, w), np.uint8) for k in ("labels", "instances", "classes")}
-        raw = None  # allocated if the sensor's encoding keeps raw11 (the model decides)
+        keep_raw = "raw" in self.cfg.arrays  # the config checked that the sensor keeps it
+        raw = np.zeros((n, h, w), np.uint16) if keep_raw else None
         records = []
         dropped = {"people": 0, "props": 0}
         for i, f in enumerate(range(start, stop)):
@@ -200,13 +201,12 @@ class FrameGenerator:
             depth[i] = o.depth_mm
             ids["labels"][i], ids["instances"][i], ids["classes"][i] = (o.labels, o.instances,
                                                                         o.classes)
-            if o.raw11 is not None:
-                if raw is None:
-                    raw = np.zeros((n, h, w), np.uint16)
+            if raw is not None and o.raw11 is not None:
                 raw[i] = o.raw11
             records.append(_with_shard(o.record, shard))
         write_shard(store, shard, self.cfg.frames_per_shard, depth, ids["labels"], raw,
-                    extra={"instances": ids["instances"], "classes": ids["classes"]})
+                    extra={k: ids[k] for k in ("instances", "classes")
+                           if k in self.cfg.arrays})
         num_joints = len(records[0].joints_cam) // 3
         write_part(store, shard, records, num_joints)
         return ShardResult(shard, n, str(self.renderer_info),

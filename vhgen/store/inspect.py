@@ -14,7 +14,8 @@ Checks, shard by shard (one shard of every array in memory at a time):
 * ``instances`` and ``classes`` (scene stores) agree with ``labels``: a pixel is a body
   part exactly when it belongs to a person instance and has the person class; instance
   ids stay within the frame's ``num_people`` and classes within ``class_names``;
-* every shard has its completion record (``manifest/part-<shard>.parquet``).
+* every shard has its completion record (``manifest/part-<shard>.parquet``) while the
+  manifest is not merged (the merge removes the parts).
 
 Each defect is one line saying where. The report also carries the per-part pixel
 histogram and valid-pixel statistics of the readable frames.
@@ -32,12 +33,16 @@ import numpy as np
 
 from vhgen.scene.geometry import PERSON, SCENE_CLASSES
 from vhgen.store.manifest import manifest_form, read_manifest_table
-from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS, open_store
+from vhgen.store.zarr_store import (
+    ARRAYS,
+    MANIFEST_FILE,
+    MANIFEST_PARTS,
+    REQUIRED_ARRAYS,
+    open_store,
+)
 
-# array name -> dtype the contract requires; depth and labels are mandatory
-CONTRACT_ARRAYS = {"depth": "uint16", "labels": "uint8", "raw": "uint16",
-                   "instances": "uint8", "classes": "uint8"}
-REQUIRED_ARRAYS = ("depth", "labels")
+# array name -> dtype the contract requires; REQUIRED_ARRAYS are mandatory
+CONTRACT_ARRAYS = {name: dtype for name, (dtype, _, _) in ARRAYS.items()}
 
 
 @dataclass
@@ -264,7 +269,7 @@ def inspect_store(path: str | Path) -> InspectReport:
     for s in range(num_shards):
         start, stop = s * fps, min(n, (s + 1) * fps)
         where = f"shard {s} (frames {start}-{stop - 1})"
-        if not (parts / f"part-{s:06d}.parquet").is_file():
+        if man is None and not (parts / f"part-{s:06d}.parquet").is_file():
             rep.defects.append(f"{where}: completion record {MANIFEST_PARTS}/part-{s:06d}.parquet "
                                "missing")
         data: dict[str, np.ndarray] = {}

@@ -10,6 +10,7 @@ import errno
 import json
 import logging
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -82,12 +83,14 @@ def _short(v: Any) -> str:
 
 
 def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool, *,
-                height: int, width: int, frames_per_shard: int, compression_level: int,
-                raw11: bool, codec: str = "zstd") -> None:
+                height: int, width: int, frames_per_shard: int,
+                compression_level: int | None, arrays: Sequence[str],
+                codec: str = "zstd") -> None:
     """Create the store for ``num_frames`` frames (H x W, shards of ``frames_per_shard``)
-    with ``attrs``, or, when resuming an existing one (whose config the caller checked
-    before any work, :func:`check_same_config`), remove the partial files a killed writer
-    left and the manifest parts that cannot be read (their shards are rendered again)."""
+    holding ``arrays`` with ``attrs``, or, when resuming an existing one (whose config the
+    caller checked before any work, :func:`check_same_config`), remove the partial files a
+    killed writer left and the manifest parts that cannot be read (their shards are
+    rendered again)."""
     try:
         if resume and (out / "zarr.json").is_file():
             n_clean = clean_partials(out)
@@ -101,6 +104,6 @@ def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool,
             create_store(out, num_frames=num_frames, height=height, width=width,
                          frames_per_shard=frames_per_shard,
                          compression_level=compression_level, attrs=attrs,
-                         overwrite=True, raw11=raw11, codec=codec)
+                         overwrite=True, arrays=arrays, codec=codec)
     except OSError as e:
         raise StoreError(os_error_line(e, out, "cannot create the store")) from None

@@ -4,7 +4,9 @@ Contract (later work may add arrays and columns, never change these):
 
 * ``depth``  (N, H, W) uint16 millimetres, 0 = no measurement;
 * ``raw`` (N, H, W) uint16, optional: the sensor's 11-bit raw disparity (2047 = invalid),
-  present when the sensor's ``encode`` effect has ``raw11``;
+  present when the config's ``output.arrays`` asks for it (the sensor's ``encode``
+  effect must have ``raw11``; stores written before ``output.arrays`` existed have it
+  whenever the sensor kept raw11);
 * ``labels`` (N, H, W) uint8, 0 = background, 1..K = body parts; the group attributes
   ``label_names`` (K names, label k = names[k-1]) and ``label_colors`` ((K+1) x RGB,
   row 0 background) describe them;
@@ -18,7 +20,9 @@ Contract (later work may add arrays and columns, never change these):
 Each array is sharded along frames: one shard holds ``frames_per_shard`` frames (one
 chunk per frame inside), and exactly one task writes each shard, whole, once. A shard is
 complete when its manifest part ``manifest/part-<shard>.parquet`` exists (written after
-the arrays), which is what resuming checks.
+the arrays), which is what resuming checks; the merge at the end writes
+``manifest.parquet`` and then removes the parts (a merged manifest marks its shards
+complete).
 """
 
 from __future__ import annotations
@@ -40,6 +44,27 @@ MANIFEST_FILE = "manifest.parquet"
 
 CODECS = ("zstd", "lz4")
 
+# The arrays a store can hold: name -> (dtype, fill value, zstd level). The levels were
+# chosen by measurement (benchmarks/bench_codecs.py on a cluttered_room store, the table
+# in docs/performance.md): zstd 11 shrinks noisy depth and raw by 15-18% against level 3
+# and decodes them no slower; levels 12-15 gain nothing on them and 16+ (another 15%)
+# take 3-4x as long to encode as level 11, as long as a frame; the uint8 arrays take
+# level 12 (17-23% smaller, about a millisecond each to encode). Byte or bit shuffling
+# before zstd (blosc) made every array but instances larger. The codec of each array is
+# recorded in its zarr.json, which is what readers go by: stores written with other
+# levels or codecs read the same.
+ARRAYS: dict[str, tuple[str, int, int]] = {
+    "depth": ("uint16", 0, 11),
+    "labels": ("uint8", 0, 12),
+    "instances": ("uint8", 0, 12),
+    "classes": ("uint8", 0, 12),
+    "raw": ("uint16", 2047, 11),
+}
+REQUIRED_ARRAYS = ("depth", "labels")
+# written unless the config's output.arrays says otherwise (raw doubles the depth's bytes
+# and few users want it: it is opt-in)
+DEFAULT_ARRAYS = ("depth", "labels", "instances", "classes")
+
 
 def _codecs(codec: str, level: int, itemsize: int):
     """Compressors of one frame chunk. ``zstd`` (default): zstd at ``level``, the smallest;
@@ -55,25 +80,27 @@ def _codecs(codec: str, level: int, itemsize: int):
 
 
 def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
-                 frames_per_shard: int, compression_level: int, attrs: dict,
-                 overwrite: bool = False, raw11: bool = False, codec: str = "zstd") -> None:
-    """Create the group and its empty arrays (driver only, before any worker writes);
-    ``codec``: see :func:`_codecs`."""
+                 frames_per_shard: int, attrs: dict, compression_level: int | None = None,
+                 overwrite: bool = False, arrays: Sequence[str] = DEFAULT_ARRAYS,
+                 codec: str = "zstd") -> None:
+    """Create the group and its empty ``arrays`` (driver only, before any worker writes);
+    ``codec``: see :func:`_codecs`; ``compression_level``: the zstd level of every array
+    (None: each array's level in :data:`ARRAYS`)."""
     import zarr
 
     path = Path(path)
     if path.exists() and not overwrite:
         raise StoreError(f"{path} exists; pass overwrite (or resume) to reuse it")
+    unknown = [a for a in arrays if a not in ARRAYS]
+    if unknown:
+        raise StoreError(f"unknown array {unknown[0]!r} (known: {', '.join(ARRAYS)})")
     root = zarr.open_group(str(path), mode="w", zarr_format=3)
-    arrays = [("depth", "uint16", 0), ("labels", "uint8", 0), ("instances", "uint8", 0),
-              ("classes", "uint8", 0)]
-    if raw11:
-        arrays.append(("raw", "uint16", 2047))
-    for name, dtype, fill in arrays:
+    for name in [a for a in ARRAYS if a in arrays]:
+        dtype, fill, level = ARRAYS[name]
         root.create_array(name, shape=(num_frames, height, width), dtype=dtype,
                           chunks=(1, height, width),
                           shards=(frames_per_shard, height, width),
-                          compressors=_codecs(codec, compression_level,
+                          compressors=_codecs(codec, compression_level or level,
                                               np.dtype(dtype).itemsize), fill_value=fill,
                           dimension_names=("frame", "y", "x"))
     root.attrs.update({"class_names": list(SCENE_CLASSES), **attrs,
@@ -108,7 +135,9 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
                 labels: np.ndarray, raw: np.ndarray | None = None,
                 extra: dict[str, np.ndarray] | None = None) -> None:
     """Write one whole shard of every array (the only writer of this shard); ``extra``
-    holds further uint8 (n, H, W) arrays by name (``instances``, ``classes``)."""
+    holds further (n, H, W) arrays by name (``instances``, ``classes``), each of which
+    the store must have, as it must ``raw`` when it is given; the caller leaves out the
+    arrays the store was made without."""
     root = open_store(path, mode="r+")
     start = shard * frames_per_shard
     n = depth.shape[0]
@@ -119,24 +148,33 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
                          "expected uint16/uint8")
     _writer(root["depth"])[start:start + n] = depth
     _writer(root["labels"])[start:start + n] = labels
-    if raw is not None:
-        _writer(root["raw"])[start:start + n] = raw
-    for name, arr in (extra or {}).items():
+    for name, arr in {**({} if raw is None else {"raw": raw}), **(extra or {})}.items():
         if name not in root:
             raise StoreError(f"{path}: no {name!r} array (the store was made by an older "
                              "vhgen); generate it again with --overwrite")
-        if arr.shape != depth.shape or arr.dtype != np.uint8:
+        dtype = np.dtype(ARRAYS[name][0])
+        if arr.shape != depth.shape or arr.dtype != dtype:
             raise StoreError(f"shard {shard}: {name} {arr.shape} {arr.dtype}, expected "
-                             f"{depth.shape} uint8")
+                             f"{depth.shape} {dtype}")
         _writer(root[name])[start:start + n] = arr
 
 
 def completed_shards(path: str | Path) -> set[int]:
-    """Shards whose manifest part exists (their arrays were written before it)."""
+    """Shards whose manifest part exists (their arrays were written before it), and the
+    shards of a merged ``manifest.parquet`` (the merge removes the parts)."""
     parts = Path(path) / MANIFEST_PARTS
-    if not parts.is_dir():
-        return set()
-    return {int(p.stem.split("-")[1]) for p in parts.glob("part-*.parquet")}
+    done = {int(p.stem.split("-")[1]) for p in parts.glob("part-*.parquet")}
+    merged = Path(path) / MANIFEST_FILE
+    if merged.is_file():
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        try:
+            shards = pq.read_table(merged, columns=["shard"]).column("shard")
+        except (OSError, pa.ArrowException):
+            return done  # unreadable: its shards are rendered again, then merged anew
+        done |= {int(s) for s in np.unique(shards.to_numpy())}
+    return done
 
 
 def clean_partials(path: str | Path) -> int:

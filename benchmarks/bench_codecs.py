@@ -1,0 +1,177 @@
+"""Bytes per frame and encode / decode time of each array under candidate codecs.
+
+    python benchmarks/bench_codecs.py STORE [--frames 64] [--arrays depth labels ...]
+        [--codecs zstd-3 blosc-zstd-5-shuffle ...] [--against OTHER_STORE]
+
+Reads up to ``--frames`` frames of each array of a finished store (for example one made
+by ``vhgen generate configs/scenes/cluttered_room.yaml --max-frames 128``) and compresses
+every frame alone, as the store's one-frame inner chunks are, with each candidate. A
+candidate is ``zstd-LEVEL`` (zarr's ``ZstdCodec``) or ``blosc-CNAME-CLEVEL-SHUFFLE``
+(zarr's ``BloscCodec``: cname zstd, lz4, lz4hc, zlib; shuffle noshuffle, shuffle or
+bitshuffle). Both are codecs of the zarr v3 specification that zarr 3.0.8 (the floor)
+writes and reads. Times are one core: blosc's own threads are off, as they are in the
+store reader's decode threads. The candidates of an array take turns for ``--repeat``
+passes over the frames and each cell is a candidate's fastest pass. ``x store``: the
+candidate's bytes over the store's own for that array (its inner chunks, from the shard
+indexes). ``--against`` compares two stores of the same frames written with different
+codecs instead: ms per frame to decode each array through the training reader
+(``vhgen.store.shards.ShardReader``, one thread), the stores taking turns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+DEFAULT_CODECS = {
+    "uint16": ["zstd-3", "zstd-6", "zstd-9", "zstd-11", "zstd-12", "zstd-15", "zstd-16",
+               "zstd-19", "blosc-zstd-3-shuffle", "blosc-zstd-5-shuffle",
+               "blosc-zstd-5-bitshuffle", "blosc-lz4-5-shuffle"],
+    "uint8": ["zstd-3", "zstd-6", "zstd-9", "zstd-12", "zstd-15", "zstd-19",
+              "blosc-zstd-5-bitshuffle", "blosc-lz4-5-noshuffle"],
+}
+
+
+def numcodec(name: str, itemsize: int) -> Any:
+    """The numcodecs object behind the zarr codec a candidate name stands for."""
+    import numcodecs
+
+    kind, *rest = name.split("-")
+    if kind == "zstd":
+        return numcodecs.Zstd(level=int(rest[0]))
+    if kind == "blosc":
+        cname, clevel, shuffle = rest
+        code = {"noshuffle": numcodecs.Blosc.NOSHUFFLE, "shuffle": numcodecs.Blosc.SHUFFLE,
+                "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[shuffle]
+        return numcodecs.Blosc(cname=cname, clevel=int(clevel), shuffle=code)
+    raise SystemExit(f"unknown candidate {name!r}: zstd-LEVEL or blosc-CNAME-CLEVEL-SHUFFLE")
+
+
+def stored_bytes(store: Path, name: str, frames: int) -> float | None:
+    """Mean bytes of the store's inner chunks of ``name`` over its first ``frames`` frames
+    (None when the array is not in the sharded layout)."""
+    from vhgen.store.shards import EMPTY, array_layout
+
+    layout = array_layout(store, name)
+    if layout is None:
+        return None
+    sizes = []
+    for shard in range(-(-frames // layout.frames_per_shard)):
+        path = layout.shard_path(shard)
+        n = layout.frames_per_shard
+        data = path.read_bytes()
+        size = 16 * n + (4 if layout.index_crc else 0)
+        idx = np.frombuffer(data[len(data) - size:][:16 * n] if layout.index_at_end
+                            else data[:16 * n], "<u8").reshape(n, 2)
+        sizes += [int(b) for o, b in idx if o != EMPTY]
+    return float(np.mean(sizes[:frames]))
+
+
+def measure(frames: np.ndarray, names: list[str], repeat: int
+            ) -> dict[str, tuple[float, float, float]]:
+    """name -> (bytes per frame, encode ms per frame, decode ms per frame) of each
+    candidate. The candidates take turns, pass after pass, and each keeps its fastest
+    pass: on a shared machine another job's burst slows one pass, not one candidate."""
+    codecs = {n: numcodec(n, frames.dtype.itemsize) for n in names}
+    chunks = {n: [c.encode(f) for f in frames] for n, c in codecs.items()}
+    out = np.empty(frames.shape[1:], frames.dtype)
+    for n, c in codecs.items():  # the round trip is exact
+        for f, chunk in zip(frames, chunks[n], strict=True):
+            c.decode(chunk, out)
+            if not np.array_equal(out, f):
+                raise SystemExit(f"{n}: the decoded frame differs")
+    enc = {n: np.inf for n in names}
+    dec = {n: np.inf for n in names}
+    for _ in range(repeat):
+        for n, c in codecs.items():
+            t0 = time.perf_counter()
+            for f in frames:
+                c.encode(f)
+            t1 = time.perf_counter()
+            for chunk in chunks[n]:
+                c.decode(chunk, out)
+            t2 = time.perf_counter()
+            enc[n], dec[n] = min(enc[n], t1 - t0), min(dec[n], t2 - t1)
+    k = 1e3 / len(frames)
+    return {n: (float(np.mean([len(c) for c in chunks[n]])), k * enc[n], k * dec[n])
+            for n in names}
+
+
+def read_ms(stores: list[Path], names: list[str], frames: int, repeat: int
+            ) -> dict[tuple[Path, str], float]:
+    """(store, array) -> ms per frame to decode the first ``frames`` frames of each array
+    through :class:`vhgen.store.shards.ShardReader` (the training reader's path, one
+    thread), the stores taking turns, each cell its fastest pass."""
+    from vhgen.store.shards import ShardReader
+
+    readers = {s: ShardReader(s, names, threads=1) for s in stores}
+    best = {(s, n): np.inf for s in stores for n in names}
+    for _ in range(repeat):
+        for s, reader in readers.items():
+            for n in names:
+                out = reader.empty(n, frames)
+                t0 = time.perf_counter()
+                reader.read_into([(n, f, out[f]) for f in range(frames)])
+                best[s, n] = min(best[s, n], time.perf_counter() - t0)
+    return {k: 1e3 * v / frames for k, v in best.items()}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("store", type=Path)
+    ap.add_argument("--frames", type=int, default=64, help="frames of each array measured")
+    ap.add_argument("--arrays", nargs="*", help="default: every array of the store")
+    ap.add_argument("--codecs", nargs="*", help="candidates (default: a set per dtype)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--against", type=Path, help="another store of the same frames: "
+                    "instead of the candidates, decode both stores' arrays through the "
+                    "store reader, side by side")
+    args = ap.parse_args()
+
+    import numcodecs.blosc
+
+    from vhgen.store.zarr_store import open_store
+
+    numcodecs.blosc.use_threads = False
+    root = open_store(args.store)
+    with warnings.catch_warnings():  # the manifest and report files are not zarr nodes
+        warnings.simplefilter("ignore")
+        names = args.arrays or sorted(root.array_keys())
+    if args.against:
+        stores = [args.store, args.against]
+        names = [n for n in names if (args.against / n / "zarr.json").is_file()]
+        n_frames = min(args.frames, root[names[0]].shape[0])
+        ms = read_ms(stores, names, n_frames, max(args.repeat, 7))
+        print(f"decode ms per frame, first {n_frames} frames, ShardReader, one thread")
+        print("| array | " + " | ".join(str(s) for s in stores) + " |")
+        print("|---|" + "---:|" * len(stores))
+        for n in [*names, "all"]:
+            cells = [sum(ms[s, m] for m in names) if n == "all" else ms[s, n]
+                     for s in stores]
+            print(f"| {n} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+        return
+    print(f"{args.store}: first {args.frames} frames; bytes and ms per frame, one core")
+    print("| array     | codec                   |   kB | x store | encode ms | decode ms |")
+    print("|-----------|-------------------------|------|---------|-----------|-----------|")
+    for name in names:
+        arr = root[name]
+        frames = np.ascontiguousarray(arr[:min(args.frames, arr.shape[0])])
+        now = stored_bytes(args.store, name, len(frames))
+        cands = args.codecs or DEFAULT_CODECS[str(frames.dtype)]
+        for cand, (size, enc, dec) in measure(frames, cands, args.repeat).items():
+            ratio = f"{size / now:7.2f}" if now else "      -"
+            print(f"| {name:9s} | {cand:23s} | {size / 1e3:4.1f} | {ratio} | {enc:9.2f} "
+                  f"| {dec:9.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,88 @@
+"""vhgen.store.manifest: the merge leaves one copy of the manifest (the parts are removed
+after ``manifest.parquet`` is written), and every state a stopped run can leave merges
+and counts its shards as done."""
+
+from __future__ import annotations
+
+import shutil
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import unmerge_manifest, write_synthetic_store
+from vhgen.store.manifest import ManifestMerger, read_manifest, write_parquet
+from vhgen.store.zarr_store import completed_shards
+
+FRAMES, PER_SHARD = 22, 4
+SHARDS = set(range(6))
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    return write_synthetic_store(tmp_path_factory.mktemp("manifest") / "s.zarr",
+                                 frames=FRAMES, frames_per_shard=PER_SHARD)
+
+
+@pytest.fixture
+def store(synthetic, tmp_path):
+    out = tmp_path / "s.zarr"
+    shutil.copytree(synthetic, out)
+    return out
+
+
+def test_merge_removes_the_parts(store, synthetic):
+    unmerge_manifest(store)  # a run stopped before its merge: parts only
+    assert completed_shards(store) == SHARDS and not (store / "manifest.parquet").exists()
+    ManifestMerger(store).finish(FRAMES)
+    assert not (store / "manifest").exists()  # one copy: the parts and their folder gone
+    assert read_manifest(store).equals(read_manifest(synthetic).sort_by("frame"))
+    assert completed_shards(store) == SHARDS  # the merged file says so now
+
+
+def test_stopped_between_merge_and_removal(store, synthetic):
+    """Parts and manifest.parquet both there (the synthetic store is written so): the
+    merge gives the same rows once each, then removes the parts."""
+    assert (store / "manifest").is_dir() and (store / "manifest.parquet").is_file()
+    assert completed_shards(store) == SHARDS
+    ManifestMerger(store).finish(FRAMES)
+    assert read_manifest(store).equals(read_manifest(synthetic).sort_by("frame"))
+    assert not (store / "manifest").exists()
+
+
+def test_merging_a_finished_store_again(store):
+    """--resume of a finished job: nothing to render, and the merge keeps the rows."""
+    ManifestMerger(store).finish(FRAMES)
+    before = read_manifest(store)
+    ManifestMerger(store).finish(FRAMES)
+    assert read_manifest(store).equals(before)
+
+
+def test_a_redone_shard_replaces_its_rows(store):
+    ManifestMerger(store).finish(FRAMES)
+    table = read_manifest(store)
+    mine = pc.equal(table.column("shard"), 2)
+    changed = table.filter(mine).set_column(
+        table.column_names.index("avatar_id"), "avatar_id",
+        pa.array([99] * PER_SHARD, pa.int32()))
+    (store / "manifest").mkdir()
+    write_parquet(changed, store / "manifest" / "part-000002.parquet")
+    ManifestMerger(store).finish(FRAMES)
+    got = read_manifest(store)
+    assert got.num_rows == FRAMES
+    assert got.filter(pc.equal(got.column("shard"), 2)).column("avatar_id").to_pylist() == \
+        [99] * PER_SHARD
+    others = pc.invert(pc.equal(got.column("shard"), 2))
+    assert got.filter(others).equals(table.filter(pc.invert(mine)))
+
+
+def test_written_with_zstd_and_dictionaries_for_strings_only(store):
+    ManifestMerger(store).finish(FRAMES)
+    meta = pq.ParquetFile(store / "manifest.parquet").metadata.row_group(0)
+    cols = {meta.column(k).path_in_schema: meta.column(k) for k in range(meta.num_columns)}
+    assert {c.compression for c in cols.values()} == {"ZSTD"}
+    dict_cols = {p for p, c in cols.items() if "RLE_DICTIONARY" in c.encodings}
+    strings = {p for p, c in cols.items() if c.physical_type == "BYTE_ARRAY"}
+    assert dict_cols and dict_cols <= strings
+    assert cols["frame"].is_stats_set
