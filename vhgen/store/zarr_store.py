@@ -46,19 +46,20 @@ CODECS = ("zstd", "lz4")
 
 # The arrays a store can hold: name -> (dtype, fill value, zstd level). The levels were
 # chosen by measurement (benchmarks/bench_codecs.py on a cluttered_room store, the table
-# in docs/performance.md): zstd 11 shrinks noisy depth and raw by 15-18% against level 3
-# and decodes them no slower; levels 12-15 gain nothing on them and 16+ (another 15%)
-# take 3-4x as long to encode as level 11, as long as a frame; the uint8 arrays take
-# level 12 (17-23% smaller, about a millisecond each to encode). Byte or bit shuffling
-# before zstd (blosc) made every array but instances larger. The codec of each array is
-# recorded in its zarr.json, which is what readers go by: stores written with other
-# levels or codecs read the same.
+# in docs/performance.md): zstd 7 shrinks noisy depth and raw by 14-16% against level 3
+# and decodes them no slower, at ~11 ms a frame to encode; levels 9-15 gain at most 1 kB
+# more (85.3 kB against 86.1 at 11) for 2-6x the encode time, which a GPU node's CPU
+# workers pay on every frame, and 16+ (another 15%) take as long as a frame; the uint8
+# arrays take level 12 (17-23% smaller, about a millisecond each to encode). Byte or bit
+# shuffling before zstd (blosc) made every array but instances larger. The codec of each
+# array is recorded in its zarr.json, which is what readers go by: stores written with
+# other levels or codecs read the same.
 ARRAYS: dict[str, tuple[str, int, int]] = {
-    "depth": ("uint16", 0, 11),
+    "depth": ("uint16", 0, 7),
     "labels": ("uint8", 0, 12),
     "instances": ("uint8", 0, 12),
     "classes": ("uint8", 0, 12),
-    "raw": ("uint16", 2047, 11),
+    "raw": ("uint16", 2047, 7),
 }
 REQUIRED_ARRAYS = ("depth", "labels")
 # written unless the config's output.arrays says otherwise (raw doubles the depth's bytes
