@@ -451,7 +451,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                          "the training one (default for a PCD: the recovered one)")
     lb.add_argument("--segment", action="store_true",
                     help="remove floor and walls, cluster the rest, and keep body parts "
-                         "only in clusters the forest calls a person (see docs/forest.md)")
+                         "only in candidates the person stage (or the forest's vote) "
+                         "calls a person; see docs/forest.md")
     lb.add_argument("--instances", type=A.output_path(".png"),
                     help="with --segment: also write an 8-bit PNG of the people found, "
                          "pixel value k = the k-th person from the left, 0 = none")

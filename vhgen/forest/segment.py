@@ -1,5 +1,6 @@
 """People segmentation around the forest: large planes removed, the rest clustered in
-2.5D, a cluster kept as a person when the forest calls most of it a body part.
+2.5D and split at heads, a candidate kept as a person by a trained person stage (or when
+the forest calls most of it a body part).
 
 Depth people pipelines (PCL's ground-based people detection, its gpu/people organized
 plane detector) do not label every pixel of a room: they remove the floor and the walls,
@@ -30,12 +31,17 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    between them, each point going to the nearest head on the floor (only clusters wider
    than ``min_split_width_m`` across: two people). Two people who touch are two
    candidates, not one too wide cluster;
-3. **vote**: a candidate is a person when it has at least ``min_pixels`` pixels, its 3D
-   extent is person-like (at most ``max_extent_m`` along its longest axis, at least
-   ``min_extent_m``), and the forest gives at least ``min_body_fraction`` of its pixels a
-   body part (optionally also: ``min_coherence``, the share of neighbouring body pixels
-   with the same part, and ``min_parts`` parts present; both off by default: on build
-   data they told people from other clusters no better than the body share);
+3. **who is a person**: with a trained person stage (:mod:`vhgen.forest.person_stage`,
+   stored in the forest's file), a candidate of at least ``min_pixels`` pixels is a
+   person when the stage's trees, reading its :data:`FEATURES` (:meth:`Segmenter.features`:
+   its size and shape in metres on the floor, and the forest's vote), give it at least
+   ``min_person_prob``. Without one, the **vote**: a candidate is a person when it has at
+   least ``min_pixels`` pixels, its 3D extent is person-like (at most ``max_extent_m``
+   along its longest axis, at least ``min_extent_m``), and the forest gives at least
+   ``min_body_fraction`` of its pixels a body part (optionally also: ``min_coherence``,
+   the share of neighbouring body pixels with the same part, and ``min_parts`` parts
+   present; both off by default: on build data they told people from other clusters no
+   better than the body share);
 4. **labels**: pixels outside person clusters become background (0); inside, a pixel the
    forest left as background takes the part of the nearest pixel it labelled;
    :meth:`Segmenter.instances` numbers the people kept (1, 2, ... left to right).
