@@ -11,11 +11,12 @@ import pytest
 from vhgen.body.avatar import _chart, build_avatar, build_body
 from vhgen.body.chart import LEG_L, LEG_R, TORSO
 from vhgen.body.contact import body_contacts, dressed_positions, hand_distance, push_out
-from vhgen.body.drape import box, hull_radius, lathe, signed_volume, solid_sheet
+from vhgen.body.drape import hull_radius
 from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import bone_matrices
 from vhgen.body.wardrobe import ITEMS, KINDS, OutfitConfig, parse_outfit
 from vhgen.errors import ConfigError
+from vhgen.geom.primitives import box, lathe, signed_volume, solid_sheet
 from vhgen.job_config import AvatarConfig, JobConfig
 from vhgen.pipeline.plan import avatar_params
 from vhgen.scene.topology import OUTWARD, closed_sides

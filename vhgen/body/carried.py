@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.chart import HAND_L, HAND_R, LEG_L, LEG_R, TORSO
-from vhgen.body.drape import Fit, Part, box, frame, lathe, rigid_part
+from vhgen.body.drape import Fit, Part, rigid_part
+from vhgen.geom.primitives import box, frame, lathe
 
 CARRIED_KINDS = ("shoulder_bag", "backpack", "hand_bag", "cup", "phone", "box")
 SIDED = ("shoulder_bag", "hand_bag", "cup", "phone", "box")

@@ -15,16 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.chart import HEAD, NECK, TORSO, BodyChart
-from vhgen.body.drape import (
-    Fit,
-    Part,
-    curtain,
-    ellipsoid,
-    frame,
-    lathe,
-    rigid_part,
-    solid_sheet,
-)
+from vhgen.body.drape import Fit, Part, curtain, rigid_part
+from vhgen.geom.primitives import ellipsoid, frame, lathe, solid_sheet
 
 HAIR_KINDS = ("short", "medium", "long", "ponytail", "bun")
 HAT_KINDS = ("cap", "beanie", "brimmed")

@@ -30,7 +30,7 @@ from vhgen.body.chart import (
     vertex_normals,
 )
 from vhgen.body.contact import PRESS_LEFT, PRESS_RIGHT, PUSH_LEGS
-from vhgen.body.drape import Fit, Part, ellipsoid, frame, hanging_tube, solid_sheet
+from vhgen.body.drape import Fit, Part, hanging_tube
 from vhgen.body.garments import (
     FEET,
     displacement,
@@ -40,6 +40,7 @@ from vhgen.body.garments import (
 )
 from vhgen.body.hair import hair_parts, hat_parts, scalp_thickness
 from vhgen.body.mesh import truncate_weights
+from vhgen.geom.primitives import ellipsoid, frame, solid_sheet
 
 LEGS = (LEG_L, LEG_R)
 
