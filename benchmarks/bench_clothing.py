@@ -52,11 +52,11 @@ def main() -> None:
     os.environ.update(worker_env())
 
     from vhgen.assets import resolve_asset_dir
-    from vhgen.body.avatar import build_avatar, build_body
+    from vhgen.body.avatar import AvatarParams, build_avatar, build_body
     from vhgen.body.labels import LabelScheme
     from vhgen.body.shape import Shape
     from vhgen.body.skinning import bone_matrices
-    from vhgen.body.wardrobe import KINDS, default_outfit_config
+    from vhgen.body.wardrobe import KINDS, Outfit, default_outfit_config
     from vhgen.camera import look_at
     from vhgen.job_config import AvatarConfig, PosesConfig
     from vhgen.mocap.clips import BUILTIN_MOTION
@@ -88,14 +88,15 @@ def main() -> None:
         "bottom": _mid("bottom", "skirt"), "shoes": _mid("shoes", "boots"),
         "hair": _mid("hair", "long"), "carried": _mid("carried", "backpack")}))
     wardrobe = AvatarConfig(count=args.typical, outfit=default_outfit_config().with_class(5))
-    typical = [avatar_params(1, a, wardrobe)["outfit"] for a in range(args.typical)]
+    typical = [avatar_params(1, a, wardrobe).outfit for a in range(args.typical)]
 
-    def build(outfit: dict | None):
+    def build(outfit: Outfit | dict | None):
+        if isinstance(outfit, dict):
+            outfit = Outfit.from_dict(outfit)
         times = []
         for _ in range(3):
             t0 = time.perf_counter()
-            body = build_avatar(asset_dir, scheme, {"shape": shape.to_dict(), "scale": 1.0,
-                                                    "clothing": [], "outfit": outfit})
+            body = build_avatar(asset_dir, scheme, AvatarParams(shape, 1.0, (), outfit))
             times.append(time.perf_counter() - t0)
         return body, 1e3 * float(np.median(times))
 

@@ -24,7 +24,7 @@ ROOT = Path(vhgen.__file__).parent
 # (without the leading "vhgen."); modules in the same layer may import each other.
 LAYERS: list[tuple[str, ...]] = [
     ("errors", "yamlio", "version"),
-    ("rotations", "camera", "assets", "executor"),
+    ("rotations", "camera", "assets", "executor", "geom"),
     ("mocap", "body", "sensor", "depthfile"),
     ("realism",),
     ("scene",),

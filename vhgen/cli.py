@@ -268,7 +268,7 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
     import numpy as np
 
     from vhgen.assets import resolve_asset_dir
-    from vhgen.body.avatar import build_body
+    from vhgen.body.avatar import AvatarParams, build_body
     from vhgen.body.export import export_mesh, posed_mesh
     from vhgen.body.labels import LabelScheme
     from vhgen.body.shape import Shape, age_from_years
@@ -282,11 +282,12 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
     if args.avatar_params is not None:  # a manifest row's avatar_params: that very body
         p = args.avatar_params
         try:
-            shape = Shape.from_dict(p["shape"])
-            scale, clothing, outfit = float(p["scale"]), tuple(p["clothing"]), p.get("outfit")
+            avatar = AvatarParams.from_dict(p)
         except (KeyError, TypeError, ValueError) as e:
             raise ConfigError(None, "--avatar-params", f"not a manifest's avatar_params "
                                                        f"({type(e).__name__}: {e})") from None
+        shape, scale, clothing, outfit = (avatar.shape, avatar.scale, avatar.clothing,
+                                          avatar.outfit)
     elif args.wear:
         from vhgen.body.wardrobe import ITEMS, parse_outfit
         from vhgen.scene.geometry import SCENE_CLASSES
@@ -314,7 +315,7 @@ def _cmd_avatar_export(args: argparse.Namespace) -> int:
         r, p = rt.apply(motion, frames=np.array([frame]))
         rot, root = r[0], p[0] * body.hip_drop / base.hip_drop
     out = export_mesh(posed_mesh(body, rot, root, args.skinning), args.output)
-    worn = ", ".join(f"{k} {v['kind']}" for k, v in (outfit or {}).items() if v)
+    worn = ", ".join(f"{k} {v.kind}" for k, v in outfit.worn()) if outfit is not None else ""
     print(f"wrote {out} ({len(body.vertices)} vertices, {len(body.faces)} triangles"
           f"{'; wearing ' + worn if worn else ''})")
     return 0

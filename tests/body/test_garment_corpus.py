@@ -85,7 +85,7 @@ def inside(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
 
 def test_inside_on_a_box():
     """The point-in-body test itself, on a known answer."""
-    from vhgen.body.drape import box
+    from vhgen.geom.primitives import box
 
     v, f = box(np.array([1.0, 1.0, 1.0]), np.eye(4))
     pts = np.array([[0.1, 0.23, 0], [0.49, 0.3, -0.2], [0.51, 0.1, 0], [0.1, 0.2, 0.6],

@@ -4,18 +4,29 @@ labels of garments, closed parts, the contact math. No GL."""
 from __future__ import annotations
 
 import json
+import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from vhgen.body.avatar import _chart, build_avatar, build_body
+from vhgen.body.avatar import AvatarParams, _chart, build_avatar, build_body
 from vhgen.body.chart import LEG_L, LEG_R, TORSO
 from vhgen.body.contact import body_contacts, dressed_positions, hand_distance, push_out
-from vhgen.body.drape import box, hull_radius, lathe, signed_volume, solid_sheet
+from vhgen.body.drape import hull_radius
 from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import bone_matrices
-from vhgen.body.wardrobe import ITEMS, KINDS, OutfitConfig, parse_outfit
+from vhgen.body.wardrobe import (
+    ITEMS,
+    KINDS,
+    Chance,
+    Outfit,
+    OutfitConfig,
+    default_outfit_config,
+    parse_outfit,
+)
 from vhgen.errors import ConfigError
+from vhgen.geom.primitives import box, lathe, signed_volume, solid_sheet
 from vhgen.job_config import AvatarConfig, JobConfig
 from vhgen.pipeline.plan import avatar_params
 from vhgen.scene.topology import OUTWARD, closed_sides
@@ -54,7 +65,7 @@ def test_no_outfit_key_draws_nothing_more():
     dressed = AvatarConfig(count=4, tights_probability=0.5, skirt_probability=0.5,
                            outfit=parse_outfit({}, None))
     for a in range(4):
-        p, q = avatar_params(11, a, bare), avatar_params(11, a, dressed)
+        p, q = avatar_params(11, a, bare).to_dict(), avatar_params(11, a, dressed).to_dict()
         assert set(p) == {"shape", "scale", "clothing"}
         assert {k: q[k] for k in p} == p and set(q["outfit"]) == set(ITEMS)
     assert parse_outfit(None, None) == OutfitConfig() and not OutfitConfig().enabled
@@ -68,12 +79,47 @@ def test_rebuild_from_recorded_params_is_byte_identical(asset_dir, shotton, k):
     params = avatar_params(7, k, cfg)
     body = build_avatar(asset_dir, shotton, params)
     recorded = json.loads(json.dumps({**body.params, "skinning": "lbs"}, sort_keys=True))
-    again = build_avatar(asset_dir, shotton, recorded)
+    again = build_avatar(asset_dir, shotton, AvatarParams.from_dict(recorded))
     assert again.fingerprint() == body.fingerprint()
     for name in ("vertices", "faces", "joints", "weights", "face_labels", "offsets", "press",
                  "face_classes"):
         assert np.array_equal(getattr(again, name), getattr(body, name)), name
-    assert recorded["outfit"] == params["outfit"]
+    assert params.outfit is not None and recorded["outfit"] == params.outfit.to_dict()
+    assert AvatarParams.from_dict(recorded) == params
+
+
+def test_typed_outfits_round_trip_to_the_same_manifest_data():
+    """Outfits travel typed; their plain data (the manifest's avatar_params.outfit) holds
+    every item, each worn one as its kind and exactly that kind's parameters (a side as
+    ``side``, a carried thing's labelling last), and rebuilds the same records, through
+    JSON and through pickling (how the plan reaches workers)."""
+    cfg = AvatarConfig(count=40, outfit=default_outfit_config().with_class(5))
+    seen = set()
+    for a in range(cfg.count):
+        params = avatar_params(5, a, cfg)
+        outfit = params.outfit
+        assert outfit is not None
+        d = outfit.to_dict()
+        assert list(d) == list(ITEMS)
+        for item, rec in d.items():
+            if rec is None:
+                assert getattr(outfit, item) is None
+                continue
+            seen.add((item, rec["kind"]))
+            names = ["side" if n == "left" else n for n in KINDS[item][rec["kind"]]]
+            extra = ["as_person", "class"] if item == "carried" else []
+            assert list(rec) == ["kind", *names, *extra]
+            for n, p in KINDS[item][rec["kind"]].items():
+                v = rec["side" if n == "left" else n]
+                if isinstance(p, Chance):
+                    assert v in (("left", "right") if n == "left" else (True, False))
+                else:
+                    assert isinstance(v, float) and p.lo <= v <= p.hi
+        recorded = json.loads(json.dumps(params.to_dict(), sort_keys=True))
+        assert Outfit.from_dict(recorded["outfit"]) == outfit
+        assert AvatarParams.from_dict(recorded) == params
+        assert pickle.loads(pickle.dumps(params)) == params
+    assert len(seen) > 15  # many kinds drawn
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +129,7 @@ def dressed(asset_dir, shotton):
     for k, o in enumerate(OUTFITS):
         params = avatar_params(3, k, AvatarConfig(count=6, outfit=_only(**o)))
         body = build_avatar(asset_dir, shotton, params)
-        bare = build_avatar(asset_dir, shotton, {**params, "outfit": None})
+        bare = build_avatar(asset_dir, shotton, replace(params, outfit=None))
         out.append((body, bare))
     return out
 
@@ -158,15 +204,15 @@ def test_loose_cloth_takes_the_label_of_the_body_under_it(dressed, asset_dir):
 def test_carried_things_have_their_own_class_or_the_hands_label(asset_dir, shotton):
     """Not part of the person: label 0, the configured class; part of it: the label of
     the hand that holds it, the person's class."""
-    own = build_body(asset_dir, shotton, outfit={"carried": {
+    own = build_body(asset_dir, shotton, outfit=Outfit.from_dict({"carried": {
         "kind": "phone", "side": "left", "width_m": 0.07, "height_m": 0.15, "depth_m": 0.008,
-        "as_person": False, "class": 6}})
+        "as_person": False, "class": 6}}))
     t = len(own.faces) - 12
     assert (own.face_classes[t:] == 6).all() and (own.face_labels[t:] == 0).all()
     assert (own.face_classes[:t] == 0).all() and (own.face_labels[:t] > 0).all()
-    person = build_body(asset_dir, shotton, outfit={"carried": {
+    person = build_body(asset_dir, shotton, outfit=Outfit.from_dict({"carried": {
         "kind": "phone", "side": "left", "width_m": 0.07, "height_m": 0.15, "depth_m": 0.008,
-        "as_person": True, "class": 0}})
+        "as_person": True, "class": 0}}))
     hand = shotton.names.index("L_hand") + 1
     assert (person.face_classes == 0).all() and (person.face_labels[t:] == hand).all()
 
@@ -178,7 +224,7 @@ def test_sleeves_and_trouser_legs_end_where_asked(asset_dir, shotton):
     arm = np.isin(chart.face_region, (3, 4))
 
     def moved(outfit: dict) -> np.ndarray:
-        b = build_body(asset_dir, shotton, outfit=outfit)
+        b = build_body(asset_dir, shotton, outfit=Outfit.from_dict(outfit))
         off = np.linalg.norm(b.offsets, axis=1)
         return (off[b.faces[:len(chart.face_region)]] > 0).all(axis=1)
 

@@ -128,8 +128,7 @@ def test_avatar_rebuilt_from_manifest_params(asset_dir, shotton):
     from vhgen.pipeline.plan import avatar_params
 
     p = avatar_params(7, 3, AvatarConfig(count=5, tights_probability=1.0))
-    a = build_body(asset_dir, shotton, shape=Shape.from_dict(p["shape"]), scale=p["scale"],
-                   clothing=tuple(p["clothing"]))
+    a = build_body(asset_dir, shotton, shape=p.shape, scale=p.scale, clothing=p.clothing)
     recorded = json.loads(json.dumps(a.params))  # what the manifest row stores
     b = build_body(asset_dir, shotton, shape=Shape.from_dict(recorded["shape"]),
                    scale=recorded["scale"], clothing=tuple(recorded["clothing"]))

@@ -29,5 +29,5 @@ def test_seed_depends_only_on_its_inputs():
 
 def test_avatar_params_in_range():
     cfg = AvatarConfig(50, (0.9, 1.1))
-    scales = [avatar_params(3, a, cfg)["scale"] for a in range(50)]
+    scales = [avatar_params(3, a, cfg).scale for a in range(50)]
     assert min(scales) >= 0.9 and max(scales) <= 1.1 and len(set(scales)) == 50

@@ -10,7 +10,7 @@ import pytest
 from vhgen.body.avatar import build_body
 from vhgen.body.contact import body_contacts, dressed_positions
 from vhgen.body.skinning import bone_matrices
-from vhgen.body.wardrobe import KINDS, Chance
+from vhgen.body.wardrobe import KINDS, Chance, Outfit
 from vhgen.camera import Intrinsics, look_at
 from vhgen.render.renderer import DepthLabelRenderer, Draw
 from vhgen.render.scene_renderer import upload_body
@@ -54,7 +54,8 @@ def test_silhouette_grows_where_garments_are_and_labels_stay_crisp(gl_ctx, asset
     outfit = {"top": _mid("top", "jumper"), "bottom": _mid("bottom", "trousers", width=0.05),
               "shoes": _mid("shoes", "boots"), "hair": _mid("hair", "medium")}
     bare = _draw(gl_ctx, build_body(asset_dir, shotton), FRONT)
-    dressed = _draw(gl_ctx, build_body(asset_dir, shotton, outfit=outfit), FRONT)
+    dressed = _draw(gl_ctx, build_body(asset_dir, shotton, outfit=Outfit.from_dict(outfit)),
+                    FRONT)
     b, d = bare.labels > 0, dressed.labels > 0
     # garments only add: the bare body's silhouette lies inside the clothed one
     assert (d[b]).mean() > 0.998
@@ -88,7 +89,7 @@ def test_silhouette_grows_where_garments_are_and_labels_stay_crisp(gl_ctx, asset
 def test_carried_things_have_their_own_class(gl_ctx, asset_dir, shotton, as_person):
     bag = {**_mid("carried", "backpack"), "as_person": as_person, "class": 0 if as_person
            else 7}
-    body = build_body(asset_dir, shotton, outfit={"carried": bag})
+    body = build_body(asset_dir, shotton, outfit=Outfit.from_dict({"carried": bag}))
     back = look_at(np.array([0.0, 1.2, -2.5]), np.array([0.0, 1.2, 0.0]))
     view = _draw(gl_ctx, body, back, instance=3)
     hit = view.depth > 0
@@ -125,7 +126,7 @@ def test_a_hand_resting_on_a_coat_stays_a_hand(gl_ctx, shared_mocap, asset_dir, 
     m = _walk_pose(shared_mocap, base, 319)
     outfit = {"top": _mid("top", "jumper"), "bottom": _mid("bottom", "trousers"),
               "outer": _mid("outer", "coat", thickness_m=0.04, length=0.7)}
-    coat = build_body(asset_dir, shotton, outfit=outfit)
+    coat = build_body(asset_dir, shotton, outfit=Outfit.from_dict(outfit))
     k = base.rig.index("RightHand")
     hand = m[k, :3, :3] @ base.rig.heads[k] + m[k, :3, 3]
     r_hand = shotton.names.index("R_hand") + 1
@@ -148,7 +149,7 @@ def test_the_garment_program_draws_the_numpy_positions(gl_ctx, shared_mocap, ass
     m = _walk_pose(shared_mocap, base, 319)
     outfit = {"top": _mid("top", "shirt"), "bottom": _mid("bottom", "skirt", flare=0.0),
               "outer": _mid("outer", "coat")}
-    body = build_body(asset_dir, shotton, outfit=outfit)
+    body = build_body(asset_dir, shotton, outfit=Outfit.from_dict(outfit))
     contacts = body_contacts(body.rig, body.vertices - body.offsets, body.joints)
     p = dressed_positions(body.vertices, body.offsets, body.press, body.joints, body.weights,
                           m, contacts)
@@ -175,7 +176,7 @@ def test_a_job_records_outfits_its_bodies_are_rebuilt_from(tmp_path, asset_dir, 
     `carried` class."""
     import json
 
-    from vhgen.body.avatar import build_avatar
+    from vhgen.body.avatar import AvatarParams, build_avatar
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.frames import FrameGenerator
     from vhgen.pipeline.job import prepare_job
@@ -192,8 +193,9 @@ def test_a_job_records_outfits_its_bodies_are_rebuilt_from(tmp_path, asset_dir, 
         for frame in (0, len(plan.avatar_id) - 1):
             out = gen.render_frame(frame)
             params = json.loads(out.record.avatar_params)
-            assert params["outfit"] == plan.avatars[out.record.avatar_id]["outfit"]
-            rebuilt = build_avatar(asset_dir, shotton, params)
+            planned = plan.avatars[out.record.avatar_id].outfit
+            assert planned is not None and params["outfit"] == planned.to_dict()
+            rebuilt = build_avatar(asset_dir, shotton, AvatarParams.from_dict(params))
             drawn = gen.describer.body(out.record.avatar_id)
             assert rebuilt.fingerprint() == drawn.fingerprint()
             assert (drawn.face_classes == carried).any()

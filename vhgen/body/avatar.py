@@ -7,6 +7,7 @@ import functools
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from vhgen.body.mesh import (
     truncate_weights,
 )
 from vhgen.body.shape import MacroTargets, Shape
+from vhgen.body.wardrobe import Outfit
 from vhgen.errors import AssetError, ConfigError
 
 BODY_GROUP = "body"
@@ -49,7 +51,7 @@ class Body:
     face_labels: np.ndarray
     rig: Rig
     scheme: LabelScheme
-    params: dict
+    params: dict  # what it was built from as plain data: the manifest's avatar_params
     offsets: np.ndarray | None = None
     press: np.ndarray | None = None
     face_classes: np.ndarray | None = None
@@ -148,14 +150,16 @@ def _chart(asset_dir: Path, rig_name: str) -> BodyChart:
 
 def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = None,
                scale: float = 1.0, clothing: tuple[str, ...] = (), rig_name: str = "cmu_mb",
-               max_influences: int = 4, outfit: dict | None = None) -> Body:
+               max_influences: int = 4, outfit: Outfit | None = None) -> Body:
     """Assemble a body from MPFB2 assets.
 
     shape : MakeHuman macro modifiers (None: the unmodified base mesh).
     scale : uniform scale about the point between the feet, after the shape.
     clothing : optional helper geometry to include and label ("tights", "skirt").
     outfit : garments, hair, shoes and carried things (:mod:`vhgen.body.wardrobe` draws
-        them, ``avatar_params["outfit"]`` records them); None or empty: a bare body.
+        them, ``avatar_params["outfit"]`` records them as plain data); None: a bare body.
+    ``params`` of the body records all of these as plain data (the manifest's
+    ``avatar_params``, from which :meth:`AvatarParams.from_dict` rebuilds them).
     Joint positions come from the joint cubes of the shaped mesh, so the rig fits it.
     """
     asset_dir = Path(asset_dir)
@@ -176,7 +180,7 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
               "clothing": list(clothing)}
     if shape is not None:
         params["shape"] = shape.to_dict()
-    if not outfit:
+    if outfit is None:
         return Body(vertices=verts, faces=faces, joints=joints, weights=weights,
                     face_labels=labels, rig=rig, scheme=scheme, params=params)
     from vhgen.body.outfit import dress_arrays, make_fit
@@ -187,17 +191,45 @@ def build_body(asset_dir: Path, scheme: LabelScheme, *, shape: Shape | None = No
     d = dress_arrays(verts, faces, joints, weights, labels, fit, outfit, guide)
     for a in d.values():
         a.setflags(write=False)
-    params["outfit"] = outfit
+    params["outfit"] = outfit.to_dict()
     return Body(vertices=d["vertices"], faces=d["faces"], joints=d["joints"],
                 weights=d["weights"], face_labels=d["face_labels"], rig=rig, scheme=scheme,
                 params=params, offsets=d["offsets"], press=d["press"],
                 face_classes=d["face_classes"], appended_faces=len(d["faces"]) - len(faces))
 
 
-def build_avatar(asset_dir: str | Path, scheme: LabelScheme, avatar: dict) -> Body:
-    """The shaped body of one avatar of a job's plan (``Plan.avatars[i]``: ``shape``,
-    ``scale``, ``clothing``, and ``outfit`` when the job dresses its avatars): the one
-    recipe the driver and the workers share."""
-    return build_body(Path(asset_dir), scheme, shape=Shape.from_dict(avatar["shape"]),
-                      scale=avatar["scale"], clothing=tuple(avatar["clothing"]),
-                      outfit=avatar.get("outfit"))
+@dataclass(frozen=True)
+class AvatarParams:
+    """What one avatar of a job's plan is built from (``Plan.avatars[i]``): its macro
+    ``shape``, uniform ``scale``, helper ``clothing`` ("tights", "skirt") and its
+    ``outfit`` when the job dresses its avatars. Plain data only in the manifest
+    (:meth:`to_dict`)."""
+
+    shape: Shape
+    scale: float
+    clothing: tuple[str, ...] = ()
+    outfit: Outfit | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """``shape`` (:meth:`Shape.to_dict`), ``scale``, ``clothing`` (a list) and, when
+        dressed, ``outfit`` (:meth:`Outfit.to_dict`)."""
+        d: dict[str, Any] = {"shape": self.shape.to_dict(), "scale": self.scale,
+                             "clothing": list(self.clothing)}
+        if self.outfit is not None:
+            d["outfit"] = self.outfit.to_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> AvatarParams:
+        """Rebuild from :meth:`to_dict` output or a manifest's ``avatar_params`` (its
+        other keys ignored; an empty or absent ``outfit`` is none)."""
+        outfit = d.get("outfit")
+        return cls(Shape.from_dict(d["shape"]), float(d["scale"]), tuple(d["clothing"]),
+                   Outfit.from_dict(outfit) if outfit else None)
+
+
+def build_avatar(asset_dir: str | Path, scheme: LabelScheme, avatar: AvatarParams) -> Body:
+    """The shaped body of one avatar of a job's plan: the one recipe the driver and the
+    workers share."""
+    return build_body(Path(asset_dir), scheme, shape=avatar.shape, scale=avatar.scale,
+                      clothing=avatar.clothing, outfit=avatar.outfit)

@@ -13,7 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from vhgen.body.chart import HAND_L, HAND_R, LEG_L, LEG_R, TORSO
-from vhgen.body.drape import Fit, Part, box, frame, lathe, rigid_part
+from vhgen.body.drape import Fit, Part, rigid_part
+from vhgen.body.wardrobe import Carried
+from vhgen.geom.primitives import box, frame, lathe
 
 CARRIED_KINDS = ("shoulder_bag", "backpack", "hand_bag", "cup", "phone", "box")
 SIDED = ("shoulder_bag", "hand_bag", "cup", "phone", "box")
@@ -42,11 +44,10 @@ def _oriented(origin: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -
     return m
 
 
-def carried_part(fit: Fit, item: dict) -> Part:
-    """The mesh of one carried thing (see :mod:`vhgen.body.outfit` for the parameters)."""
-    kind = item["kind"]
-    size = np.array([item.get("width_m", 0.0), item.get("height_m", 0.0),
-                     item.get("depth_m", 0.0)])
+def carried_part(fit: Fit, item: Carried) -> Part:
+    """The mesh of one carried thing (see :mod:`vhgen.body.wardrobe` for the parameters)."""
+    kind = item.kind
+    size = np.array([item.width_m, item.height_m, item.depth_m])
     rig = fit.rig
     if kind == "backpack":
         y = float(rig.heads[rig.index("LeftShoulder"), 1]) - size[1] / 2 - 0.03
@@ -56,7 +57,9 @@ def carried_part(fit: Fit, item: dict) -> Part:
         z = float(band[:, 2].min()) - size[2] / 2 - 0.01
         m = frame(np.array([0.0, y, z]), [0, 1.0, 0], [0, 0, 1.0])
         return rigid_part(kind, box(size, m), fit.bone("Spine1"), (TORSO,), True)
-    side = item["side"]
+    side = item.side
+    if side is None:
+        raise ValueError(f"a carried {kind} needs a side")
     sign = 1.0 if side == "left" else -1.0
     if kind == "shoulder_bag":
         y = float(rig.heads[rig.index("LeftUpLeg"), 1]) + 0.02
@@ -84,13 +87,13 @@ def carried_part(fit: Fit, item: dict) -> Part:
         return rigid_part(kind, box(size, _oriented(at, np.cross(d, palm), d, palm)),
                           fit.bone(bone), hand, True)
     if kind == "box":
-        s = item["size_m"]
-        dims = np.array([s, s * 0.8, s * 0.6])
+        e = item.size_m
+        dims = np.array([e, e * 0.8, e * 0.6])
         at = centre + palm * (dims[2] / 2 + 0.012)
         return rigid_part(kind, box(dims, _oriented(at, np.cross(d, palm), d, palm)),
                           fit.bone(bone), hand, True)
     if kind == "cup":
-        r, h = item["radius_m"], item["height_m"]
+        r, h = item.radius_m, item.height_m
         profile = np.array([[0.0, -h / 2], [r * 0.8, -h / 2], [r, h / 2], [0.0, h / 2]])
         at = centre + palm * (r + 0.012)
         # the cup's axis runs across the palm, its fingers wrap round it

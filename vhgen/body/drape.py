@@ -1,9 +1,11 @@
-"""Loose parts: closed solids that hang off the body (skirts, coat hems, long hair) and the
-small primitives hair, hats and carried things are made of.
+"""Loose parts: closed solids that hang off the body (skirts, coat hems, long hair), fitted
+to a shaped body and bound to its rig.
 
 Every part is a closed, consistently wound (outward) triangle mesh, so the renderer culls
 its far side as it does the body's. A hanging part is a thick sheet: an outer and an inner
-surface on the same grid of rings (rows) and columns, joined by rims along its edges.
+surface on the same grid of rings (rows) and columns, joined by rims along its edges
+(:func:`vhgen.geom.primitives.solid_sheet`); hair, hats and carried things are made of the
+posed solids of :mod:`vhgen.geom.primitives` too.
 
 Skirts and coat hems are tubes around the legs: each ring is the convex hull of the body's
 cross-section at its height (both legs and the gap between them, as cloth spans it), never
@@ -15,50 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from vhgen.body.chart import BodyChart
 from vhgen.body.mesh import Rig
-
-
-def solid_sheet(outer: np.ndarray, inner: np.ndarray, wrap: bool) -> tuple[np.ndarray,
-                                                                           np.ndarray]:
-    """A closed solid between two grids of points (R, C, 3) (R >= 2 rows, C >= 2 columns;
-    ``wrap``: column C-1 joins column 0, a tube). Returns vertices (2RC, 3) float64 and
-    faces (F, 3) int64, wound counter-clockwise seen from outside (positive volume)."""
-    r, c = outer.shape[:2]
-    verts = np.concatenate([outer.reshape(-1, 3), inner.reshape(-1, 3)]).astype(np.float64)
-    o = np.arange(r * c).reshape(r, c)
-    i = o + r * c
-    cols = c if wrap else c - 1
-
-    def grid(g: np.ndarray, flip: bool) -> list[np.ndarray]:
-        a, b = g[:-1, :cols], g[:-1, (np.arange(cols) + 1) % c]
-        d, e = g[1:, :cols], g[1:, (np.arange(cols) + 1) % c]
-        t1 = np.stack([a, d, e], -1).reshape(-1, 3)
-        t2 = np.stack([a, e, b], -1).reshape(-1, 3)
-        return [t1[:, ::-1], t2[:, ::-1]] if flip else [t1, t2]
-
-    def strip(p: np.ndarray, q: np.ndarray, closed: bool) -> list[np.ndarray]:
-        """Quads between two polylines p, q (n,) of vertex ids (p[k], p[k+1], q[k+1], q[k])."""
-        n = len(p) if closed else len(p) - 1
-        k, k1 = np.arange(n), (np.arange(n) + 1) % len(p)
-        return [np.stack([p[k], p[k1], q[k1]], -1), np.stack([p[k], q[k1], q[k]], -1)]
-
-    faces = grid(o, False) + grid(i, True)
-    faces += strip(o[0], i[0], wrap) + strip(i[-1], o[-1], wrap)
-    if not wrap:
-        faces += strip(i[:, 0], o[:, 0], False) + strip(o[:, -1], i[:, -1], False)
-    f = np.concatenate(faces).astype(np.int64)
-    if signed_volume(verts, f) < 0:
-        f = f[:, ::-1].copy()
-    return verts, f
-
-
-def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """Volume enclosed by a closed mesh (positive when wound outward)."""
-    v = vertices[faces]
-    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6.0)
 
 
 def hull_radius(points: np.ndarray, center: np.ndarray, angles: np.ndarray,
@@ -168,73 +129,6 @@ def curtain(skin: np.ndarray, guide: np.ndarray, head_half: np.ndarray, y_top: f
     t = volume * (0.35 + 0.65 * np.sqrt(1 - u[None] ** 2)) * top
     outer = np.stack([x * (1 + 0.1 * t / max(volume, 1e-6)), y, z - 0.004 - t], -1)
     return outer, inner
-
-
-def box(size: np.ndarray, transform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A closed box of ``size`` (3,) centred at the origin, moved by ``transform`` (4, 4);
-    12 outward triangles."""
-    s = np.asarray(size, np.float64) / 2
-    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * s
-    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
-    return _moved(v, transform), f
-
-
-def lathe(profile: np.ndarray, transform: np.ndarray, segments: int = 16
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """A closed solid of revolution about the local y axis: ``profile`` (P, 2) of (radius,
-    y) from the bottom pole (radius 0) to the top pole (radius 0), moved by ``transform``."""
-    p = np.asarray(profile, np.float64)
-    a = np.arange(segments) * (2 * np.pi / segments)
-    ring = p[1:-1]
-    v = [[0.0, p[0, 1], 0.0], [0.0, p[-1, 1], 0.0]]
-    for r, y in ring:
-        v += [[r * np.sin(t), y, r * np.cos(t)] for t in a]
-    verts = np.array(v)
-    faces = []
-    n = segments
-    k = np.arange(n)
-    first, last = 2, 2 + (len(ring) - 1) * n
-    faces.append(np.stack([np.zeros(n, int), first + (k + 1) % n, first + k], -1))
-    for j in range(len(ring) - 1):
-        a0, a1 = 2 + j * n, 2 + (j + 1) * n
-        faces.append(np.stack([a0 + k, a0 + (k + 1) % n, a1 + (k + 1) % n], -1))
-        faces.append(np.stack([a0 + k, a1 + (k + 1) % n, a1 + k], -1))
-    faces.append(np.stack([np.ones(n, int), last + k, last + (k + 1) % n], -1))
-    f = np.concatenate(faces).astype(np.int64)
-    if signed_volume(verts, f) < 0:
-        f = f[:, ::-1].copy()
-    return _moved(verts, transform), f
-
-
-def ellipsoid(radii: np.ndarray, transform: np.ndarray, segments: int = 14,
-              rings: int = 7) -> tuple[np.ndarray, np.ndarray]:
-    """A closed ellipsoid with semi-axes ``radii`` (3,), moved by ``transform``."""
-    t = np.linspace(-np.pi / 2, np.pi / 2, rings + 2)
-    v, f = lathe(np.column_stack([np.cos(t), np.sin(t)]), np.eye(4), segments)
-    v = v * np.asarray(radii, np.float64)
-    return _moved(v, transform), f
-
-
-def _moved(v: np.ndarray, transform: np.ndarray) -> np.ndarray:
-    m = np.asarray(transform, np.float64)
-    return v @ m[:3, :3].T + m[:3, 3]
-
-
-def frame(origin: np.ndarray, y_axis: ArrayLike, z_hint: ArrayLike) -> np.ndarray:
-    """(4, 4) rigid transform with its origin at ``origin``, local y along ``y_axis`` and
-    local z as near ``z_hint`` as is orthogonal to it."""
-    y = np.asarray(y_axis, np.float64)
-    y = y / np.linalg.norm(y)
-    hint = np.asarray(z_hint, np.float64)
-    z = hint - y * float(np.dot(hint, y))
-    nz = np.linalg.norm(z)
-    z = z / nz if nz > 1e-9 else np.cross(y, [1.0, 0.0, 0.0]) / max(
-        np.linalg.norm(np.cross(y, [1.0, 0.0, 0.0])), 1e-9)
-    x = np.cross(y, z)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, z, origin
-    return m
 
 
 @dataclass(frozen=True, eq=False)

@@ -38,6 +38,7 @@ from vhgen.body.chart import (
     smooth,
 )
 from vhgen.body.contact import PRESS_LEFT, PRESS_RIGHT
+from vhgen.body.wardrobe import Outfit
 
 ARMS = (ARM_L, ARM_R, HAND_L, HAND_R)
 LEGS = (LEG_L, LEG_R)
@@ -99,8 +100,8 @@ def feet(chart: BodyChart, height: float) -> np.ndarray:
     return np.isin(r, FEET) | (np.isin(r, LEGS) & _nan_gt(chart.face_leg_t, height))
 
 
-def tight_layers(chart: BodyChart, outfit: dict) -> list[Layer]:
-    """The tight layers of an outfit (see :mod:`vhgen.body.outfit` for the parameters),
+def tight_layers(chart: BodyChart, outfit: Outfit) -> list[Layer]:
+    """The tight layers of an outfit (see :mod:`vhgen.body.wardrobe` for the parameters),
     innermost first."""
     layers: list[Layer] = []
     t_faces = len(chart.face_region)
@@ -108,29 +109,29 @@ def tight_layers(chart: BodyChart, outfit: dict) -> list[Layer]:
     def add(name: str, mask: np.ndarray, thickness: np.ndarray | float) -> None:
         layers.append(Layer(name, np.where(mask, thickness, 0.0) * np.ones(t_faces)))
 
-    bottom = outfit.get("bottom")
-    if bottom is not None and bottom["kind"] in ("trousers", "shorts"):
-        mask = lower_body(chart, bottom["length"], bottom["rise"])
+    bottom = outfit.bottom
+    if bottom is not None and bottom.kind in ("trousers", "shorts"):
+        mask = lower_body(chart, bottom.length, bottom.rise)
         # wide legs flare from the knee down
-        flare = bottom["width"] * _smoothstep(np.nan_to_num(chart.face_leg_t), 0.45, 1.0)
-        add(bottom["kind"], mask, bottom["thickness_m"] + flare)
+        flare = bottom.width * _smoothstep(np.nan_to_num(chart.face_leg_t), 0.45, 1.0)
+        add(bottom.kind, mask, bottom.thickness_m + flare)
     elif bottom is not None:  # a skirt: its waistband is tight, the rest hangs (drape)
-        add("waistband", (chart.face_region == TORSO) & (chart.face_height < bottom["rise"])
-            & (chart.face_height > bottom["rise"] - 0.15), bottom["thickness_m"])
-    top = outfit.get("top")
+        add("waistband", (chart.face_region == TORSO) & (chart.face_height < bottom.rise)
+            & (chart.face_height > bottom.rise - 0.15), bottom.thickness_m)
+    top = outfit.top
     if top is not None:
         # a dress's top ends at its skirt's waist
-        hem = top["hem"] if top["kind"] != "dress" else (bottom or {}).get("rise", 0.3) - 0.1
-        add(top["kind"], upper_body(chart, top["sleeve"], hem, top["collar"]),
-            top["thickness_m"])
-    outer = outfit.get("outer")
+        hem = top.hem if top.kind != "dress" else (
+            bottom.rise if bottom is not None else 0.3) - 0.1
+        add(top.kind, upper_body(chart, top.sleeve, hem, top.collar), top.thickness_m)
+    outer = outfit.outer
     if outer is not None:
-        gap = outer["gap_m"] if outer["open"] else 0.0
-        add(outer["kind"], upper_body(chart, outer["sleeve"], outer["hem"], outer["collar"],
-                                      gap), outer["thickness_m"])
-    shoes = outfit.get("shoes")
+        gap = outer.gap_m if outer.open else 0.0
+        add(outer.kind, upper_body(chart, outer.sleeve, outer.hem, outer.collar, gap),
+            outer.thickness_m)
+    shoes = outfit.shoes
     if shoes is not None:
-        add(shoes["kind"], feet(chart, shoes["height"]), shoes["thickness_m"])
+        add(shoes.kind, feet(chart, shoes.height), shoes.thickness_m)
     return layers
 
 

@@ -1,6 +1,6 @@
-"""Dressing a body: an avatar's outfit (the parameters :mod:`vhgen.body.wardrobe` draws
-and ``avatar_params`` records) turned into geometry on its shaped body, once per avatar,
-on the CPU.
+"""Dressing a body: an avatar's :class:`~vhgen.body.wardrobe.Outfit` (the typed records
+:mod:`vhgen.body.wardrobe` draws and ``avatar_params`` records as plain data) turned into
+geometry on its shaped body, once per avatar, on the CPU.
 
 Tight garments, shoes, the hair on the scalp and hat crowns move the body's own vertices
 (:mod:`vhgen.body.garments`); skirts, coat hems, a hood, long hair, ponytails, buns, hat
@@ -30,7 +30,7 @@ from vhgen.body.chart import (
     vertex_normals,
 )
 from vhgen.body.contact import PRESS_LEFT, PRESS_RIGHT, PUSH_LEGS
-from vhgen.body.drape import Fit, Part, ellipsoid, frame, hanging_tube, solid_sheet
+from vhgen.body.drape import Fit, Part, hanging_tube
 from vhgen.body.garments import (
     FEET,
     displacement,
@@ -40,6 +40,8 @@ from vhgen.body.garments import (
 )
 from vhgen.body.hair import hair_parts, hat_parts, scalp_thickness
 from vhgen.body.mesh import truncate_weights
+from vhgen.body.wardrobe import Outfit
+from vhgen.geom.primitives import ellipsoid, frame, solid_sheet
 
 LEGS = (LEG_L, LEG_R)
 
@@ -119,27 +121,26 @@ def _hood(fit: Fit, thickness: float) -> Part:
     return Part("hood", v, f, fit.nearest_weights(v, (TORSO, NECK), k=12), (TORSO, NECK))
 
 
-def outfit_parts(fit: Fit, outfit: dict, guide: np.ndarray) -> list[Part]:
+def outfit_parts(fit: Fit, outfit: Outfit, guide: np.ndarray) -> list[Part]:
     """The appended parts of an outfit, in a fixed order."""
     parts: list[Part] = []
-    bottom, outer = outfit.get("bottom"), outfit.get("outer")
-    if bottom is not None and bottom["kind"] == "skirt":
-        parts.append(_tube(fit, "skirt", _y_at_height(fit, bottom["rise"]), bottom["length"],
-                           bottom["thickness_m"], bottom["flare"]))
-    if outer is not None and outer["kind"] == "coat":
-        top_y = _y_at_height(fit, outer["hem"] + 0.15)
-        parts.append(_tube(fit, "coat", top_y, outer["length"], outer["thickness_m"] + 0.01,
-                           outer["flare"], outer["gap_m"] if outer["open"] else 0.0))
-    if outer is not None and outer["hood"]:
-        parts.append(_hood(fit, outer["thickness_m"]))
-    hair, hat = outfit.get("hair"), outfit.get("hat")
+    bottom, outer = outfit.bottom, outfit.outer
+    if bottom is not None and bottom.kind == "skirt":
+        parts.append(_tube(fit, "skirt", _y_at_height(fit, bottom.rise), bottom.length,
+                           bottom.thickness_m, bottom.flare))
+    if outer is not None and outer.kind == "coat":
+        top_y = _y_at_height(fit, outer.hem + 0.15)
+        parts.append(_tube(fit, "coat", top_y, outer.length, outer.thickness_m + 0.01,
+                           outer.flare, outer.gap_m if outer.open else 0.0))
+    if outer is not None and outer.hood:
+        parts.append(_hood(fit, outer.thickness_m))
+    hair, hat = outfit.hair, outfit.hat
     if hair is not None:
         parts += hair_parts(fit, guide, hair)
     if hat is not None:
         parts += hat_parts(fit, hat, hair)
-    carried = outfit.get("carried")
-    if carried is not None:
-        parts.append(carried_part(fit, carried))
+    if outfit.carried is not None:
+        parts.append(carried_part(fit, outfit.carried))
     return parts
 
 
@@ -164,7 +165,7 @@ def _nearest_labels(fit: Fit, faces: np.ndarray, labels: np.ndarray, part: Part,
 
 
 def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weights: np.ndarray,
-                 labels: np.ndarray, fit: Fit, outfit: dict, guide: np.ndarray,
+                 labels: np.ndarray, fit: Fit, outfit: Outfit, guide: np.ndarray,
                  ) -> dict[str, np.ndarray]:
     """The body's arrays dressed in ``outfit``.
 
@@ -180,9 +181,9 @@ def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weight
     nv, nf = len(chart.region), len(chart.face_region)
     body_faces = faces[:nf]
     thickness = face_thickness(tight_layers(chart, outfit), nf)
-    thickness += scalp_thickness(chart, outfit.get("hair"), outfit.get("hat"))
-    shoes = outfit.get("shoes")
-    extra = _soles(fit, shoes["sole_m"]) if shoes is not None else None
+    thickness += scalp_thickness(chart, outfit.hair, outfit.hat)
+    shoes = outfit.shoes
+    extra = _soles(fit, shoes.sole_m) if shoes is not None else None
     off_body = displacement(skin[:nv], body_faces, fit.normals, chart, thickness, extra)
     offsets = np.zeros_like(skin)
     offsets[:nv] = off_body
@@ -193,7 +194,7 @@ def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weight
     all_joints, all_weights = [joints], [weights]
     all_labels = [np.asarray(labels, np.uint8)]
     classes = [np.zeros(len(faces), np.uint8)]
-    carried = outfit.get("carried") or {}
+    carried = outfit.carried
     n = len(skin)
     trees: dict = {}
     part_offsets, part_press = [], []
@@ -210,9 +211,9 @@ def dress_arrays(skin: np.ndarray, faces: np.ndarray, joints: np.ndarray, weight
         all_weights.append(w)
         lab = _nearest_labels(fit, body_faces, np.asarray(labels), part, trees)
         cls = np.zeros(len(part.faces), np.uint8)
-        if part.carried and not carried.get("as_person", False):
+        if part.carried and carried is not None and not carried.as_person:
             lab = np.zeros_like(lab)
-            cls[:] = int(carried["class"])
+            cls[:] = int(carried.scene_class)
         elif part.carried:  # all of it the body part that carries it (the hand, not the wrist)
             lab = np.full_like(lab, np.bincount(lab).argmax())
         all_labels.append(lab.astype(np.uint8))

@@ -2,11 +2,15 @@
 probabilities and ranges every avatar's outfit is drawn from.
 
 An outfit is drawn per avatar from the avatar's own seeded stream (after its shape; see
-:func:`vhgen.pipeline.plan.avatar_params`) and recorded as a plain dict in
-``avatar_params["outfit"]``, from which :func:`vhgen.body.avatar.build_body` rebuilds the
-same geometry. Seven items, drawn in this order, each worn with its ``probability``; its
-kind is drawn by the ``kinds`` weights and every parameter of the kind uniformly in its
-range (or, for a yes/no parameter, with its chance):
+:func:`vhgen.pipeline.plan.avatar_params`) as a frozen :class:`Outfit` of typed records
+(:class:`Top`, :class:`Outer`, :class:`Bottom`, :class:`Shoes`, :class:`Hair`,
+:class:`Hat`, :class:`Carried`), which the dressing code (:mod:`vhgen.body.outfit`) reads
+field by field; it becomes plain data only in the manifest (:meth:`Outfit.to_dict`, in
+``avatar_params["outfit"]``), from which :meth:`Outfit.from_dict` and
+:func:`vhgen.body.avatar.build_body` rebuild the same geometry. Seven items, drawn in
+this order, each worn with its ``probability``; its kind is drawn by the ``kinds`` weights
+and every parameter of the kind uniformly in its range (or, for a yes/no parameter, with
+its chance):
 
 ======== ================================= =====================================
 item     kinds                             parameters (see :data:`KINDS`)
@@ -30,8 +34,8 @@ along the leg (1 the ankle, 0.7 a boot to mid-calf); sizes in metres.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import dataclass, fields, replace
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -155,6 +159,171 @@ DEFAULT_WEIGHTS = {
 }
 
 
+class _Item:
+    """What the records of worn items share: ``kind`` and the parameters :data:`KINDS`
+    gives that kind (the fields of other kinds of the item stay at their defaults)."""
+
+    ITEM: ClassVar[str]
+    kind: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data, as the manifest records it: ``kind`` and the kind's parameters in
+        drawing order (a side as ``side``: "left" or "right")."""
+        out: dict[str, Any] = {"kind": self.kind}
+        for name in KINDS[self.ITEM][self.kind]:
+            name = "side" if name == "left" else name
+            out[name] = getattr(self, name)
+        return out
+
+
+@dataclass(frozen=True)
+class Top(_Item):
+    """A top (tank, tshirt, shirt, jumper, dress; the units: module docstring)."""
+
+    ITEM: ClassVar[str] = "top"
+    kind: str
+    sleeve: float
+    hem: float
+    collar: float
+    thickness_m: float
+
+
+@dataclass(frozen=True)
+class Outer(_Item):
+    """A jacket or coat over the top; ``length`` and ``flare`` (of its hem below the
+    hips) are a coat's."""
+
+    ITEM: ClassVar[str] = "outer"
+    kind: str
+    sleeve: float
+    hem: float
+    collar: float
+    thickness_m: float
+    gap_m: float
+    open: bool
+    hood: bool
+    length: float = 0.0
+    flare: float = 0.0
+
+
+@dataclass(frozen=True)
+class Bottom(_Item):
+    """Trousers or shorts (``width``: how much wider from the knee down) or a skirt
+    (``flare``)."""
+
+    ITEM: ClassVar[str] = "bottom"
+    kind: str
+    length: float
+    rise: float
+    thickness_m: float
+    width: float = 0.0
+    flare: float = 0.0
+
+
+@dataclass(frozen=True)
+class Shoes(_Item):
+    """Shoes or boots."""
+
+    ITEM: ClassVar[str] = "shoes"
+    kind: str
+    height: float
+    thickness_m: float
+    sole_m: float
+
+
+@dataclass(frozen=True)
+class Hair(_Item):
+    """A hairstyle: ``volume_m`` on the scalp; ``length_m`` of long hair and a ponytail,
+    ``radius_m`` of a ponytail and a bun."""
+
+    ITEM: ClassVar[str] = "hair"
+    kind: str
+    volume_m: float
+    length_m: float = 0.0
+    radius_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class Hat(_Item):
+    """A hat: ``thickness_m`` of a cap's or beanie's crown, ``brim_m`` of a cap and a
+    brimmed hat, ``crown_m`` of a brimmed hat."""
+
+    ITEM: ClassVar[str] = "hat"
+    kind: str
+    thickness_m: float = 0.0
+    brim_m: float = 0.0
+    crown_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class Carried(_Item):
+    """A carried thing: its sizes (those of its kind, :data:`KINDS`), the ``side`` that
+    carries it ("left", "right"; None for a backpack), and how it is labelled:
+    ``as_person`` (the part that carries it, the person's class) or else label 0 and
+    ``scene_class`` (recorded as ``class``)."""
+
+    ITEM: ClassVar[str] = "carried"
+    kind: str
+    width_m: float = 0.0
+    height_m: float = 0.0
+    depth_m: float = 0.0
+    radius_m: float = 0.0
+    size_m: float = 0.0
+    side: str | None = None
+    as_person: bool = False
+    scene_class: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """As :meth:`_Item.to_dict`, then ``as_person`` and ``class``."""
+        return {**super().to_dict(), "as_person": self.as_person, "class": self.scene_class}
+
+
+Item = Top | Outer | Bottom | Shoes | Hair | Hat | Carried
+
+
+@dataclass(frozen=True)
+class Outfit:
+    """One avatar's outfit: each item a record, or None when not worn."""
+
+    top: Top | None = None
+    outer: Outer | None = None
+    bottom: Bottom | None = None
+    shoes: Shoes | None = None
+    hair: Hair | None = None
+    hat: Hat | None = None
+    carried: Carried | None = None
+
+    def worn(self) -> tuple[tuple[str, Item], ...]:
+        """The items worn, (name, record) in the order of :data:`ITEMS`."""
+        return tuple((f.name, getattr(self, f.name)) for f in fields(self)
+                     if getattr(self, f.name) is not None)
+
+    def to_dict(self) -> dict[str, dict[str, Any] | None]:
+        """Plain data, as the manifest's ``avatar_params["outfit"]`` records it: {item:
+        None or {"kind": ..., parameter: value}} for every item."""
+        out: dict[str, dict[str, Any] | None] = {}
+        for f in fields(self):
+            rec = getattr(self, f.name)
+            out[f.name] = rec.to_dict() if rec is not None else None
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Outfit:
+        """Rebuild from :meth:`to_dict` output (a manifest's ``avatar_params.outfit``)."""
+        return cls(**{name: None if d.get(name) is None else _record(name, d[name])
+                      for name in ITEMS})
+
+
+_RECORDS: dict[str, type[Item]] = {r.ITEM: r for r in (Top, Outer, Bottom, Shoes, Hair, Hat,
+                                                       Carried)}
+
+
+def _record(item: str, values: dict[str, Any]) -> Any:
+    """The record of ``item`` from plain values (a draw, or :meth:`_Item.to_dict` output)."""
+    return _RECORDS[item](**{"scene_class" if k == "class" else k: v
+                             for k, v in values.items()})
+
+
 @dataclass(frozen=True)
 class ItemConfig:
     """One item: worn with ``probability``; ``kinds`` (name, weight) pairs; ``params``
@@ -164,8 +333,9 @@ class ItemConfig:
     kinds: tuple[tuple[str, float], ...]
     params: tuple[tuple[str, tuple[tuple[str, Param], ...]], ...]
 
-    def draw(self, rng: np.random.Generator) -> dict | None:
-        """One draw of the item: None (not worn), or its kind and parameters."""
+    def draw(self, rng: np.random.Generator) -> dict[str, Any] | None:
+        """One draw of the item: None (not worn), or its kind and parameters (the values
+        of its record)."""
         if not rng.uniform() < self.probability:
             return None
         w = np.array([k[1] for k in self.kinds])
@@ -213,24 +383,27 @@ class OutfitConfig:
         """The same config with carried things in scene class ``class_id``."""
         return replace(self, carried_class=int(class_id))
 
-    def sample(self, rng: np.random.Generator) -> dict:
-        """One avatar's outfit: {item: None or {"kind": ..., parameter: value}} for every
-        item, drawn from ``rng`` in the order of :data:`ITEMS`."""
-        out: dict[str, Any] = {}
+    def sample(self, rng: np.random.Generator) -> Outfit:
+        """One avatar's outfit, its items drawn from ``rng`` in the order of
+        :data:`ITEMS`."""
+        worn: dict[str, Any] = {}
         for name, item in self.items:
-            out[name] = item.draw(rng) if item is not None else None
-        top, outer = out.get("top"), out.get("outer")
-        if top is not None and top["kind"] == "dress":
+            drawn = item.draw(rng) if item is not None else None
+            worn[name] = _record(name, drawn) if drawn is not None else None
+        top, outer = worn.get("top"), worn.get("outer")
+        if top is not None and top.kind == "dress":
             # a dress is a top and a skirt in one: its skirt comes from the bottom's ranges
             bottom = dict(self.items).get("bottom") or _default_item("bottom")
             skirt = dict(bottom.params)["skirt"]
-            out["bottom"] = ItemConfig(1.0, (("skirt", 1.0),), (("skirt", skirt),)).draw(rng)
-        if outer is not None and outer.get("open") and top is None:
-            outer["open"] = False  # nothing under it to show
-        if out.get("carried") is not None:
-            out["carried"]["as_person"] = self.carried_as_person
-            out["carried"]["class"] = 0 if self.carried_as_person else self.carried_class
-        return out
+            drawn = ItemConfig(1.0, (("skirt", 1.0),), (("skirt", skirt),)).draw(rng)
+            worn["bottom"] = _record("bottom", drawn) if drawn is not None else None
+        if outer is not None and outer.open and top is None:
+            worn["outer"] = replace(outer, open=False)  # nothing under it to show
+        if worn.get("carried") is not None:
+            worn["carried"] = replace(worn["carried"], as_person=self.carried_as_person,
+                                      scene_class=0 if self.carried_as_person
+                                      else self.carried_class)
+        return Outfit(**worn)
 
 
 def _param(v: Any, default: Param, src, where: str) -> Param:
@@ -295,5 +468,6 @@ def default_outfit_config() -> OutfitConfig:
     return OutfitConfig(True, tuple((n, _default_item(n)) for n in ITEMS))
 
 
-__all__ = ["CARRIED_CLASS", "ITEMS", "KINDS", "Chance", "ItemConfig", "OutfitConfig", "Range",
+__all__ = ["CARRIED_CLASS", "ITEMS", "KINDS", "Bottom", "Carried", "Chance", "Hair", "Hat",
+           "Item", "ItemConfig", "Outer", "Outfit", "OutfitConfig", "Range", "Shoes", "Top",
            "default_outfit_config", "parse_outfit"]

@@ -62,6 +62,9 @@ import numpy as np
 
 from vhgen.camera import Intrinsics, backproject
 from vhgen.forest.person_stage import PersonStage
+from vhgen.geom.planes import plane_basis as _plane_basis
+from vhgen.geom.planes import ransac_plane as _ransac_plane
+from vhgen.geom.planes import spread as _spread
 
 # what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
@@ -452,17 +455,6 @@ class Segmenter:
         return out
 
 
-def _plane_basis(normal: np.ndarray) -> np.ndarray:
-    """(2, 3): two orthonormal axes of the plane with unit ``normal`` (the first one
-    along the camera's x where it can be)."""
-    x = np.array([1.0, 0.0, 0.0])
-    if abs(normal @ x) > 0.9:
-        x = np.array([0.0, 0.0, 1.0])
-    e1 = x - (x @ normal) * normal
-    e1 /= np.linalg.norm(e1)
-    return np.stack([e1, np.cross(normal, e1)])
-
-
 def _occluding_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
                      jump_m: float) -> float:
     """Of the 4-neighbour pairs across the border of ``mask`` (to valid pixels), the share
@@ -497,54 +489,6 @@ def _in_front_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
         far += int((out_a & (~va | (za - zb > jump_m * zb))).sum())
         total += int(out_b.sum() + out_a.sum())
     return far / total if total else 0.0
-
-
-def _spread(q: np.ndarray) -> np.ndarray:
-    """5th-95th percentile range of points ``q`` (k, 2) along each of their principal
-    axes (m)."""
-    c = q - q.mean(0)
-    axes = np.linalg.svd(c[:: max(1, len(c) // 5000)], full_matrices=False)[2]
-    t = c @ axes.T
-    lo, hi = np.percentile(t, [5, 95], axis=0)
-    return hi - lo
-
-
-def _ransac_plane(p: np.ndarray, rng: np.random.Generator, iterations: int,
-                  tol_at_1m: float, tol_max: float, sample_size: int = 4000
-                  ) -> tuple[np.ndarray, tuple[np.ndarray, float]]:
-    """Inliers (bool over ``p`` (N, 3) float64 camera-frame points) of the plane with the
-    most of them, and the plane (unit normal, offset: ``p @ normal = offset``):
-    ``iterations`` planes through 3 random points, scored together on a random sample of
-    ``sample_size`` points (distance below ``tol_at_1m * z^2``, at most ``tol_max``), the
-    best refitted by least squares on its inliers among all points."""
-    n = len(p)
-
-    def tolerance(q: np.ndarray) -> np.ndarray:
-        return np.minimum(tol_at_1m * np.maximum(q[:, 2], 0.3) ** 2, tol_max)
-
-    tol = tolerance(p)
-    sample = p if n <= sample_size else p[rng.choice(n, sample_size, replace=False)]
-    s_tol = tolerance(sample)
-    tri = sample[rng.integers(0, len(sample), size=(iterations, 3))]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norms = np.linalg.norm(normals, axis=1)
-    ok = norms > 1e-9  # collinear draws give no plane
-    if not ok.any():
-        return np.zeros(n, bool), (np.array([0.0, 0.0, 1.0]), 0.0)
-    normals = normals[ok] / norms[ok, None]
-    offsets = np.einsum("ij,ij->i", normals, tri[ok, 0])
-    counts = (np.abs(sample @ normals.T - offsets) < s_tol[:, None]).sum(0)
-    k = int(np.argmax(counts))
-    normal, offset = normals[k], float(offsets[k])
-    inl = np.abs(p @ normal - offset) < tol
-    if inl.sum() >= 3:  # least-squares refit on the inliers (float64 SVD)
-        q = p[inl]
-        centre = q.mean(0)
-        normal = np.linalg.svd((q - centre)[:: max(1, len(q) // 20000)],
-                               full_matrices=False)[2][-1]
-        offset = float(centre @ normal)
-        inl = np.abs(p @ normal - offset) < tol
-    return inl, (normal, offset)
 
 
 def _longest_extent(p: np.ndarray) -> float:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vhgen.body.avatar import AvatarParams
 from vhgen.job_config import AvatarConfig
 
 _AVATAR_STREAM = 0xA7A7
@@ -23,7 +24,7 @@ def frame_seed(job_seed: int, avatar_id: int, pose_index: int, camera: int = 0) 
     return int(ss.generate_state(1, dtype=np.uint64)[0])
 
 
-def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
+def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> AvatarParams:
     """Parameters of one avatar (shape, scale, clothing, and its outfit when the config
     has ``avatars.outfit``), drawn from its own seeded stream; the body is rebuilt from
     them exactly (:func:`vhgen.body.avatar.build_avatar`)."""
@@ -32,10 +33,9 @@ def avatar_params(job_seed: int, avatar_id: int, cfg: AvatarConfig) -> dict:
     scale = float(rng.uniform(*cfg.scale))
     clothing = [c for c, p in (("tights", cfg.tights_probability),
                                ("skirt", cfg.skirt_probability)) if rng.uniform() < p]
-    params = {"shape": shape.to_dict(), "scale": scale, "clothing": clothing}
-    if cfg.outfit.enabled:  # drawn after the rest: configs without an outfit keep their avatars
-        params["outfit"] = cfg.outfit.sample(rng)
-    return params
+    # drawn after the rest: configs without an outfit keep their avatars
+    outfit = cfg.outfit.sample(rng) if cfg.outfit.enabled else None
+    return AvatarParams(shape, scale, tuple(clothing), outfit)
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class Plan:
     avatar_id: np.ndarray  # (N,)
     pose_index: np.ndarray  # (N,)
     seeds: np.ndarray  # (N,) uint64
-    avatars: list[dict]
+    avatars: list[AvatarParams]
     tasks: list[Task]
 
 

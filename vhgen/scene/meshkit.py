@@ -2,9 +2,10 @@
 
 A clutter item is hundreds of repeated simple solids: books, shelf boards, leaves,
 balusters, radiator fins. Each primitive (a unit cube, a unit cylinder, a leaf, a thin
-tube, a low-poly sphere) is built once per process and kept; an item is a list of
-*instance batches* (one primitive, an (N, 3, 4) affine transform per instance), turned
-into vertices with one ``einsum`` per batch. Nothing is rebuilt with trimesh per frame.
+tube, a low-poly sphere: :mod:`vhgen.geom.primitives`) is built once per process and
+kept; an item is a list of *instance batches* (one primitive, an (N, 3, 4) affine
+transform per instance), turned into vertices with one ``einsum`` per batch. Nothing is
+rebuilt with trimesh per frame.
 
 Every face carries a *role*, mapped to a scene class when the item is placed:
 :data:`BODY` (the kind's own class), :data:`OBJECT` (things standing on the item: books,
@@ -16,87 +17,12 @@ leaf, open at an angle, or a chair pulled out from a desk, gets a footprint of i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import cache
-
 import numpy as np
+
+from vhgen.geom.primitives import Primitive, as_primitive, cube, cylinder, leaf, sphere
 
 BODY, OBJECT, WALL, FLOOR = range(4)
 ROLES = ("body", "object", "wall", "floor")
-
-
-@dataclass(frozen=True, eq=False)
-class Primitive:
-    """A unit mesh: vertices (V, 3) float64, faces (T, 3) int64 (read-only)."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-
-
-def _frozen(v, f) -> Primitive:
-    v = np.ascontiguousarray(v, np.float64)
-    f = np.ascontiguousarray(f, np.int64)
-    v.setflags(write=False)
-    f.setflags(write=False)
-    return Primitive(v, f)
-
-
-@cache
-def cube() -> Primitive:
-    """The unit cube [-0.5, 0.5]^3, 12 outward-wound triangles."""
-    v = [[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
-    f = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-         [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
-    return _frozen(v, f)
-
-
-@cache
-def cylinder(sections: int = 12, top_ratio: float = 1.0, caps: bool = True) -> Primitive:
-    """A cylinder (or frustum: top radius ``top_ratio``) of radius 1 from y = 0 to y = 1,
-    ``sections`` sides, with caps unless ``caps`` is false (an open tube)."""
-    a = np.linspace(0.0, 2 * np.pi, sections, endpoint=False)
-    ring = np.column_stack([np.cos(a), np.zeros(sections), np.sin(a)])
-    top = ring * np.array([top_ratio, 1.0, top_ratio]) + np.array([0.0, 1.0, 0.0])
-    v = [ring, top]
-    k = np.arange(sections)
-    n = (k + 1) % sections
-    f = [np.column_stack([k, sections + n, n]), np.column_stack([k, sections + k, sections + n])]
-    if caps:
-        v.append(np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
-        c0, c1 = 2 * sections, 2 * sections + 1
-        f += [np.column_stack([np.full(sections, c0), k, n]),
-              np.column_stack([np.full(sections, c1), sections + n, sections + k])]
-    return _frozen(np.concatenate(v), np.concatenate(f))
-
-
-@cache
-def sphere() -> Primitive:
-    """A unit sphere, 8 x 6 latitude-longitude (80 triangles): bags, balls, fruit."""
-    lat = np.linspace(0, np.pi, 7)[1:-1]
-    lon = np.linspace(0, 2 * np.pi, 8, endpoint=False)
-    ring = np.array([[np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)]
-                     for t in lat for p in lon])
-    v = np.concatenate([[[0.0, 1.0, 0.0]], ring, [[0.0, -1.0, 0.0]]])
-    m, rows = 8, len(lat)
-    f = []
-    for j in range(m):
-        f.append([0, 1 + (j + 1) % m, 1 + j])
-        f.append([len(v) - 1, 1 + (rows - 1) * m + j, 1 + (rows - 1) * m + (j + 1) % m])
-    for r in range(rows - 1):
-        for j in range(m):
-            a, b = 1 + r * m + j, 1 + r * m + (j + 1) % m
-            f += [[a, b, b + m], [a, b + m, a + m]]
-    return _frozen(v, f)
-
-
-@cache
-def leaf() -> Primitive:
-    """A leaf: length 1 along +x from its stalk at the origin, width 0.4 in z, the midrib
-    raised 0.04 in y (4 triangles; open: both sides are seen)."""
-    v = [[0.0, 0.0, 0.0], [0.35, 0.0, 0.2], [1.0, 0.0, 0.0], [0.35, 0.0, -0.2],
-         [0.4, 0.04, 0.0]]
-    f = [[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]]
-    return _frozen(v, f)
 
 
 def yaw_matrix(yaw: np.ndarray) -> np.ndarray:
@@ -219,7 +145,7 @@ class Kit:
 
     def mesh(self, vertices, faces, role: int) -> None:
         """An explicit mesh (V, 3), (T, 3), once (curtains, a door's corridor)."""
-        self.add(_frozen(vertices, faces), np.eye(3, 4)[None], role)
+        self.add(as_primitive(vertices, faces), np.eye(3, 4)[None], role)
 
     def build(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """vertices (V, 3) float64, faces (T, 3) int64, roles (T,) uint8, groups (T,)

@@ -7,13 +7,13 @@ y axis in x and z, metres. Sizes are drawn from the given generator (the scene s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from vhgen.errors import ConfigError
+from vhgen.geom.primitives import centred_cylinder, cube
 
 PARAMETRIC = ("box", "table", "chair", "sofa", "door", "cylinder")
 
@@ -32,48 +32,22 @@ class PropShape:
         return float(np.hypot(self.vertices[:, 0], self.vertices[:, 2]).max())
 
 
-# a unit cube centred on the origin: 8 corners, 12 outward-wound triangles
-_CUBE_V = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
-_CUBE_F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                    [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
-
-
-class _Mesh:
-    """Vertices and faces of concatenated boxes (plain NumPy: a box is 12 triangles, and
-    building them with trimesh per frame costs milliseconds)."""
-
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        self.vertices = vertices
-        self.faces = faces
+_Mesh = tuple[np.ndarray, np.ndarray]  # vertices (V, 3), faces (T, 3)
 
 
 def _boxes(parts: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
            ) -> _Mesh:
-    """Concatenated boxes, each (extents, centre)."""
-    verts = [_CUBE_V * np.asarray(e) + np.asarray(c) for e, c in parts]
-    faces = [_CUBE_F + 8 * k for k in range(len(parts))]
-    return _Mesh(np.concatenate(verts), np.concatenate(faces))
+    """Concatenated boxes, each (extents, centre), from the unit cube (plain NumPy: a box
+    is 12 triangles, and building them with trimesh per frame costs milliseconds)."""
+    unit = cube()
+    verts = [unit.vertices * np.asarray(e) + np.asarray(c) for e, c in parts]
+    faces = [unit.faces + 8 * k for k in range(len(parts))]
+    return np.concatenate(verts), np.concatenate(faces)
 
 
 def _legs(w: float, d: float, leg: float, h: float) -> list:
     x, z = w / 2 - leg / 2, d / 2 - leg / 2
     return [((leg, h, leg), (sx * x, h / 2, sz * z)) for sx in (-1, 1) for sz in (-1, 1)]
-
-
-@lru_cache(maxsize=1)
-def _unit_cylinder() -> _Mesh:
-    """Radius 1, height 1, standing along y, centred on the origin (built once with trimesh:
-    building one per prop cost 0.5 ms a frame)."""
-    import trimesh
-
-    cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=24)
-    # trimesh's cylinder runs along z: stand it up along y
-    cyl.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
-    v = np.asarray(cyl.vertices, np.float64)
-    f = np.asarray(cyl.faces, np.int64)
-    v.setflags(write=False)
-    f.setflags(write=False)
-    return _Mesh(v, f)
 
 
 def parametric(kind: str, rng: np.random.Generator) -> PropShape:
@@ -108,11 +82,11 @@ def parametric(kind: str, rng: np.random.Generator) -> PropShape:
                     ((w, 0.08, 0.1), (0, h + 0.04, 0))])
     elif kind == "cylinder":
         r, h = lerp(0, 0.1, 0.35), lerp(1, 0.4, 1.2)
-        unit = _unit_cylinder()
-        m = _Mesh(unit.vertices * np.array([r, h, r]), unit.faces)
+        unit = centred_cylinder()
+        m = (unit.vertices * np.array([r, h, r]), unit.faces)
     else:
         raise ValueError(f"unknown prop kind {kind!r}")
-    return _stand(kind, np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64))
+    return _stand(kind, np.asarray(m[0], np.float64), np.asarray(m[1], np.int64))
 
 
 def _stand(kind: str, v: np.ndarray, f: np.ndarray) -> PropShape:

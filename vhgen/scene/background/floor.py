@@ -1,9 +1,10 @@
 """The floor of a real depth frame and its free floor (pure).
 
-:func:`estimate_floor`: the floor plane, RANSAC on the back-projected points (float64),
-with the depth noise's growth with distance in the residual scale; :func:`free_floor`: the
-grid of floor cells a person may stand on, and how much room each has. Both run once per
-background, when the job's backgrounds are read (:mod:`vhgen.scene.background.load`).
+:func:`estimate_floor`: the floor plane, RANSAC on the back-projected points (float64;
+hypotheses and the depth noise's growth with distance in the residual scale from
+:mod:`vhgen.geom.planes`); :func:`free_floor`: the grid of floor cells a person may stand
+on, and how much room each has. Both run once per background, when the job's backgrounds
+are read (:mod:`vhgen.scene.background.load`).
 
 World frame of a background (:meth:`FloorPlane.world_to_camera`): y up and y = 0 the real
 floor; the camera at (0, h, 0), h its height above the floor, with its optical axis
@@ -18,6 +19,7 @@ import numpy as np
 
 from vhgen.camera import Intrinsics, project
 from vhgen.errors import BackgroundError
+from vhgen.geom.planes import depth_noise, planes_through
 from vhgen.scene.background.background_frame import FloorPlane
 
 # -- the floor --------------------------------------------------------------------------
@@ -25,10 +27,11 @@ FLOOR_STEP_PX = 4  # the plane is fitted on every 4th pixel of every 4th row (~1
 HYPOTHESES = 1000  # RANSAC: planes through 3 points, drawn with a fixed seed
 REFINED = 8  # the best distinct hypotheses refined (Tukey IRLS), compared by their cost
 SCORE_POINTS = 4000  # hypotheses are ranked on this many of the points
-# residual scale of a floor point, sigma(z) = SIGMA_M + SIGMA_Z2 z^2 (metres): the depth
-# noise grows with z^2 (1.44 mm/m^2 axial noise and 2.9 mm/m^2 quantisation steps on the
-# shared OpenNI frames, docs/realism.md "Real frames and realism"); on capture0001-0003 the floor
-# points' residuals have a standard deviation of 0.8 sigma
+# residual scale of a floor point, sigma(z) = SIGMA_M + SIGMA_Z2 z^2 (metres), the noise
+# model of vhgen.geom.planes.depth_noise: the depth noise grows with z^2 (1.44 mm/m^2 axial
+# noise and 2.9 mm/m^2 quantisation steps on the shared OpenNI frames, docs/realism.md
+# "Real frames and realism"); on capture0001-0003 the floor points' residuals have a
+# standard deviation of 0.8 sigma
 SIGMA_M = 0.006
 SIGMA_Z2 = 0.0015
 CUT = 3.0  # a point within CUT sigma of the plane is on it
@@ -65,7 +68,7 @@ def _points(depth_mm: np.ndarray, intr: Intrinsics, step: int = 1) -> np.ndarray
 
 
 def _sigma(points: np.ndarray) -> np.ndarray:
-    return SIGMA_M + SIGMA_Z2 * points[:, 2] ** 2
+    return depth_noise(points[:, 2], SIGMA_Z2, base_m=SIGMA_M)
 
 
 def _normals(depth_mm: np.ndarray, intr: Intrinsics, step: int) -> tuple[np.ndarray,
@@ -152,10 +155,7 @@ def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
         raise BackgroundError(path, "no floor: no surface under the camera faces up")
     idx = up[rng.integers(len(up), size=(HYPOTHESES, 3))]
     a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
-    n = np.cross(b - a, c - a)
-    norm = np.linalg.norm(n, axis=1)
-    ok = norm > 1e-12
-    n = n / np.where(ok, norm, 1.0)[:, None]
+    n, ok = planes_through(a, b, c, min_norm=1e-12)
     h = -(n * a).sum(1)
     n *= np.where(h < 0, -1.0, 1.0)[:, None]  # the camera on the positive side
     h = np.abs(h)

@@ -19,7 +19,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from vhgen.scene.meshkit import BODY, FLOOR, OBJECT, WALL, Kit, cylinder
+from vhgen.geom.primitives import cylinder
+from vhgen.scene.meshkit import BODY, FLOOR, OBJECT, WALL, Kit
 from vhgen.scene.solids import rect
 
 BOARD = 0.02  # shelf boards, cabinet sides
