@@ -183,10 +183,17 @@ class JobConfig:
         # named configs come from the package, YAML paths are relative to this file;
         # checked here, so a typo fails before any work starts
         refs: dict[str, str] = {}
+        # sensor: a preset name or file, or {preset: ..., backend: cpu | gl}
+        sensor_ref = d.get("sensor", "kinect_v1_full")
+        sensor_backend: object = None
+        if isinstance(sensor_ref, dict):
+            check_keys(sensor_ref, {"preset", "backend"}, {"preset"}, path, "sensor.")
+            sensor_backend = sensor_ref.get("backend")
+            sensor_ref = sensor_ref["preset"]
         for key, kind, default in (("sensor", "sensors", "kinect_v1_full"),
                                    ("labels", "labels", "shotton31"),
                                    ("retarget", "retarget", "auto")):
-            ref = d.get(key, default)
+            ref = sensor_ref if key == "sensor" else d.get(key, default)
             if not isinstance(ref, str) or not ref:
                 raise ConfigError(path, key, f"must be a config name or a YAML path, got {ref!r}")
             if ref.endswith((".yaml", ".yml")):
@@ -202,6 +209,8 @@ class JobConfig:
                     raise ConfigError(path, key, str(e)) from None
         try:
             sensor = SensorConfig.load(refs["sensor"])
+            if sensor_backend is not None:
+                sensor = sensor.with_backend(sensor_backend)
         except ConfigError as e:
             raise ConfigError(path, "sensor", str(e)) from None
         arrays = _arrays(out.get("arrays", list(DEFAULT_ARRAYS)), sensor, path)

@@ -27,6 +27,7 @@ class RangeGate(EffectSpec, name="range_gate"):
 
     READS = frozenset({"depth_m", "valid"})
     WRITES = frozenset({"valid", "holes"})
+    GL = True
 
     def check(self) -> None:
         if self.z_min_m >= self.z_max_m:
@@ -68,6 +69,7 @@ class LateralNoise(EffectSpec, name="lateral_noise"):
 
     RANDOM = True
     WRITES = MEASURE | {"labels", "incidence"}  # moved with the pixels when given
+    GL = True
 
     @property
     def reads(self) -> frozenset[str]:
@@ -96,6 +98,7 @@ class AxialNoise(EffectSpec, name="axial_noise"):
 
     RANDOM = True
     WRITES = MEASURE
+    GL = True
 
     @property
     def reads(self) -> frozenset[str]:
@@ -116,10 +119,16 @@ class ProjectorShadow(EffectSpec, name="projector_shadow"):
     tolerance: float = number(0.01, 0.0, 0.5, unit="relative")
 
     WRITES = MEASURE
+    GL = True
 
     @property
     def reads(self) -> frozenset[str]:
         return MEASURE | {"projector_depth"} if self.method == "exact" else MEASURE
+
+    def gl_unsupported(self) -> tuple[str, str] | None:
+        if self.method == "exact":
+            return "method", "exact has no GL pass yet (screen_space has)"
+        return None
 
 
 @dataclass(frozen=True)
@@ -135,6 +144,7 @@ class CorrelationWindow(EffectSpec, name="correlation_window"):
 
     READS = MEASURE | {"pattern"}
     WRITES = MEASURE
+    GL = True
 
 
 @dataclass(frozen=True)
@@ -150,6 +160,7 @@ class Dropout(EffectSpec, name="dropout"):
 
     READS = MEASURE | {"incidence"}
     WRITES = MEASURE
+    GL = True
 
 
 @dataclass(frozen=True)
@@ -161,6 +172,7 @@ class DisparityQuantisation(EffectSpec, name="disparity_quantisation"):
 
     READS = MEASURE
     WRITES = MEASURE
+    GL = True
 
 
 @dataclass(frozen=True)
@@ -200,6 +212,7 @@ class RangeDropout(EffectSpec, name="range_dropout"):
     RANDOM = True
     READS = MEASURE
     WRITES = MEASURE
+    GL = True
 
     def check(self) -> None:
         if self.z_start_m >= self.z_end_m:
@@ -225,6 +238,7 @@ class Registration(EffectSpec, name="registration"):
 
     READS = MEASURE
     WRITES = MEASURE
+    GL = True
 
 
 @dataclass(frozen=True)
@@ -238,3 +252,4 @@ class SpeckleFilter(EffectSpec, name="speckle_filter"):
 
     READS = MEASURE
     WRITES = MEASURE
+    GL = True

@@ -23,6 +23,7 @@ the file and the field. The renderer is asked only for what the effects need
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,10 @@ from vhgen.sensor.spec import EffectSpec, Encoding, SpecError, check_order, effe
 from vhgen.yamlio import check_keys, find_config, load_yaml
 
 _KEYS = {"name", "width", "height", "fx", "fy", "cx", "cy", "baseline_m", "effects",
-         "pattern_seed", "dot_density", "description"}
+         "pattern_seed", "dot_density", "description", "backend"}
+# where the effects run: "cpu", the numba stages (the reference), or "gl", the compute
+# passes of vhgen.render.sensor_gl over the rendered textures
+BACKENDS = ("cpu", "gl")
 _REQUIRED = {"name", "width", "height", "fx", "fy", "cx", "cy", "baseline_m", "effects"}
 
 
@@ -91,6 +95,25 @@ def parse_effects(items: object, source: str | Path | None
     return tuple(specs), encoding or Encoding()
 
 
+def check_backend(effects: tuple[EffectSpec, ...], backend: object,
+                  source: str | Path | None) -> str:
+    """``backend`` validated for ``effects``: one of :data:`BACKENDS`, and with ``gl``,
+    every effect one the GL backend can run. Raises ConfigError naming
+    ``effects[i].name`` (and the parameter) that it cannot, in one line."""
+    if not isinstance(backend, str) or backend not in BACKENDS:
+        raise ConfigError(source, "backend", f"must be one of {', '.join(BACKENDS)}, "
+                                             f"got {backend!r}")
+    if backend == "gl":
+        for i, e in enumerate(effects):
+            gap = e.gl_unsupported()
+            if gap is not None:
+                field, reason = gap
+                where = f"effects[{i}].{e.name}" + (f".{field}" if field else "")
+                raise ConfigError(source, where, f"{reason}: backend gl cannot run this "
+                                                 "sensor; use backend: cpu")
+    return backend
+
+
 @dataclass(frozen=True, eq=False)
 class SensorConfig:
     """A sensor description; frozen and stateless (see the module docstring)."""
@@ -103,6 +126,7 @@ class SensorConfig:
     pattern_seed: int = 0
     dot_density: float = 0.2
     source: str | None = None
+    backend: str = "cpu"  # see BACKENDS
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> SensorConfig:
@@ -125,9 +149,17 @@ class SensorConfig:
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ConfigError(path, "pattern_seed", f"must be an integer >= 0, got {seed!r}")
         effects, encoding = parse_effects(d["effects"], path)
+        backend = check_backend(effects, d.get("backend", "cpu"), path)
         intr = Intrinsics(d["width"], d["height"], fx, fy, cx, cy)
         return cls(str(d["name"]), intr, base, effects, encoding, seed, float(density),
-                   str(path))
+                   str(path), backend)
+
+    def with_backend(self, backend: object, source: str | Path | None = None
+                     ) -> SensorConfig:
+        """This sensor run by ``backend`` (see :func:`check_backend`; ``source`` names the
+        file that asked for it in the error)."""
+        b = check_backend(self.effects, backend, source or self.source)
+        return self if b == self.backend else dataclasses.replace(self, backend=b)
 
     @property
     def needs(self) -> frozenset[str]:
@@ -151,8 +183,12 @@ class SensorConfig:
         return next((e for e in self.effects if e.name == name), None)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain description (dataset attrs and the manifest's ``sensor`` column)."""
-        return {"name": self.name, "intrinsics": self.intrinsics.to_dict(),
-                "baseline_m": self.baseline_m, "pattern_seed": self.pattern_seed,
-                "dot_density": self.dot_density,
-                "effects": [e.to_dict() for e in self.effects] + [self.encoding.to_dict()]}
+        """Plain description (dataset attrs and the manifest's ``sensor`` column); the
+        backend only when it is not the reference ``cpu`` (so CPU stores keep their bytes)."""
+        d = {"name": self.name, "intrinsics": self.intrinsics.to_dict(),
+             "baseline_m": self.baseline_m, "pattern_seed": self.pattern_seed,
+             "dot_density": self.dot_density,
+             "effects": [e.to_dict() for e in self.effects] + [self.encoding.to_dict()]}
+        if self.backend != "cpu":
+            d["backend"] = self.backend
+        return d

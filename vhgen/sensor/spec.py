@@ -166,6 +166,9 @@ class EffectSpec(Params):
     READS: ClassVar[frozenset[str]] = frozenset()
     WRITES: ClassVar[frozenset[str]] = frozenset()
     RANDOM: ClassVar[bool] = False
+    # a GL pass exists for it (vhgen/render/sensor_gl.py; a test checks the two agree);
+    # parameter values it cannot run are named by gl_unsupported
+    GL: ClassVar[bool] = False
 
     def __init_subclass__(cls, name: str = "", **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -201,6 +204,14 @@ class EffectSpec(Params):
     def needs(self) -> frozenset[str]:
         """What the renderer must provide for it (incidence, projector_depth)."""
         return self.reads & RENDERED
+
+    def gl_unsupported(self) -> tuple[str, str] | None:
+        """``(field, reason)`` when ``backend: gl`` cannot run this configured effect (field
+        "" for the effect as a whole), None when it can. Checked when the sensor is loaded,
+        so a sensor the GL backend cannot run never reaches a frame."""
+        if not self.GL:
+            return "", "has no GL pass yet"
+        return None
 
 
 def check_order(effects: tuple[EffectSpec, ...]) -> tuple[int, str] | None:

@@ -1,0 +1,465 @@
+"""The sensor model as GL compute passes (``sensor.backend: gl``).
+
+The same :class:`~vhgen.sensor.sensor_config.SensorConfig` and effect specs as the CPU
+sensor (:class:`~vhgen.sensor.simulator.SensorModel`, the reference), run as compute
+shaders (GL 4.3; ``shaders/sensor_*.comp``) over the frame's depth, ids and incidence in
+shader storage buffers, so the effects run where the frame was rendered. Each effect is a
+:class:`GLPass` registered for its spec class, as the CPU stages are; an effect with no
+pass (or parameters its pass cannot run) is refused when the sensor is loaded
+(:meth:`EffectSpec.gl_unsupported`), never in a frame.
+
+What differs from the CPU path, by design: arithmetic is float32 (the CPU's float64), and
+the random numbers come from a counter-based hash (PCG's output permutation of (frame key,
+effect, pixel, draw)) instead of the frame's Generator, which gives only the two-word key.
+So a frame is identical run to run and its statistics match the CPU sensor's (measured in
+``tests/render/test_sensor_gl.py`` and docs/realism.md), but its pixels are not the CPU's.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Generic, TypeVar
+
+import numpy as np
+
+from vhgen.errors import RenderError
+from vhgen.render.renderer import _park, _shader
+from vhgen.sensor.effects import (
+    AxialNoise,
+    CorrelationWindow,
+    DisparityQuantisation,
+    Dropout,
+    LateralNoise,
+    ProjectorShadow,
+    RangeDropout,
+    RangeGate,
+    Registration,
+    SpeckleFilter,
+)
+from vhgen.sensor.pattern import PATTERN_PAD, dot_pattern
+from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.sensor.simulator import SensorOutput
+from vhgen.sensor.spec import EffectSpec
+from vhgen.sensor.state import HOLE_CAUSES
+
+S = TypeVar("S", bound=EffectSpec)
+_PASSES: dict[type[EffectSpec], type[GLPass[Any]]] = {}
+
+GL_VERSION_NEEDED = 430  # compute shaders and shader storage buffers
+_LOCAL = 8  # work group edge of the per-pixel programs (8 x 8)
+_ROWS = 32  # work group of the row scans
+# names the shaders use for the hole causes, effects and steps (#defines)
+_CONSTANTS: dict[str, object] = {c.upper(): i for i, c in enumerate(HOLE_CAUSES)}
+_CONSTANTS.update({k: i + 1 for i, k in enumerate((
+    "INVERT", "RANGE_GATE", "RANGE_DROPOUT", "AXIAL_NOISE", "DROPOUT", "QUANTISE", "BAND",
+    "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "INIT", "SCAN", "RESOLVE", "COUNT", "REMOVE"))})
+_AXIAL_MODELS = {"disparity": 0, "khoshelham": 1, "nguyen": 2, "barron_malik": 3}
+_CHANNELS = ("val", "flags", "ids", "inc")  # the state, bindings 0-3 (spares 4-7)
+
+
+def gl_effects() -> frozenset[type[EffectSpec]]:
+    """The effect spec classes that have a GL pass."""
+    return frozenset(_PASSES)
+
+
+class GLPass(Generic[S]):
+    """Base of every GL pass: compiled once per :class:`GLSensorModel`, ``run`` per frame
+    on the model's buffers. Subclasses register for their spec (``spec=``)."""
+
+    SPEC: ClassVar[type[EffectSpec]]
+
+    def __init_subclass__(cls, spec: type[EffectSpec] | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if spec is not None:
+            if spec in _PASSES:
+                raise TypeError(f"effect {spec.name!r} has two GL passes")
+            cls.SPEC = spec
+            _PASSES[spec] = cls
+
+    def __init__(self, spec: S, model: GLSensorModel, index: int):
+        self.spec = spec
+        self.model = model
+        self.index = index  # the effect's position: its random stream
+
+    def run(self) -> None:
+        raise NotImplementedError
+
+
+class GLSensorModel:
+    """Runs a :class:`SensorConfig` with GL compute passes on a moderngl context (GL 4.3
+    or newer); same interface as :class:`~vhgen.sensor.simulator.SensorModel`.
+
+    ctx : a current moderngl context (see :mod:`vhgen.render.context`).
+    Raises :class:`RenderError` (one line naming ``sensor.backend: cpu``) when the context
+    has no compute shaders, or when an effect has no GL pass.
+    """
+
+    def __init__(self, ctx, cfg: SensorConfig):
+        if ctx.version_code < GL_VERSION_NEEDED:
+            raise RenderError(f"the GL sensor needs OpenGL 4.3 compute shaders; this context "
+                              f"is {ctx.version_code // 100}.{ctx.version_code % 100 // 10} "
+                              f"({ctx.info.get('GL_RENDERER', '?')}): use sensor.backend: cpu")
+        self.ctx = ctx
+        self.cfg = cfg
+        intr = cfg.intrinsics
+        self.width, self.height = intr.width, intr.height
+        self.fb = intr.fx * cfg.baseline_m
+        n = self.width * self.height
+        self._programs: dict[tuple[str, tuple[tuple[str, object], ...]], Any] = {}
+        self.buffers: dict[str, Any] = {}
+        self.spare: dict[str, Any] = {}
+        for ch in _CHANNELS:
+            self.buffers[ch] = ctx.buffer(reserve=4 * n)
+            self.spare[ch] = ctx.buffer(reserve=4 * n)
+        self.aux = [ctx.buffer(reserve=4 * n) for _ in range(4)]
+        self.counts = ctx.buffer(reserve=4 * 8)
+        self.out = ctx.buffer(reserve=4 * n)
+        self.changed = ctx.buffer(reserve=4)
+        size = (self.width, self.height)
+        self.textures = {k: ctx.texture(size, 1, dtype="f4") for k in ("depth", "ids", "inc")}
+        self.pattern: Any = None
+        self.pattern_width = 0
+        self.domain = "z"
+        self.passes: list[GLPass[Any]] = []
+        for i, e in enumerate(cfg.effects):
+            cls = _PASSES.get(type(e))
+            gap = e.gl_unsupported()
+            if cls is None or gap is not None:
+                self.release()
+                raise RenderError(f"effect {e.name} has no GL pass"
+                                  + (f" ({gap[0]}: {gap[1]})" if gap and gap[0] else "")
+                                  + ": use sensor.backend: cpu")
+            self.passes.append(cls(e, self, i))
+        self._load = self.program("sensor_load.comp")
+        self._finish = self.program("sensor_finish.comp")
+        self._invert = self.program("sensor_pixel.comp", EFFECT="INVERT")
+        self._check("compiling the sensor passes")
+
+    # --- plumbing ------------------------------------------------------------------------
+    def program(self, name: str, **defines: object):
+        """The compute program of shader file ``name`` with ``defines`` (cached)."""
+        k = (name, tuple(sorted(defines.items())))
+        prog = self._programs.get(k)
+        if prog is None:
+            prog = self.ctx.compute_shader(_shader(name, {**_CONSTANTS, **defines}))
+            self._set(prog, size=(self.width, self.height), fb=self.fb)
+            self._programs[k] = prog
+        return prog
+
+    @staticmethod
+    def _set(prog, **uniforms: object) -> None:
+        """Set the uniforms the program uses (the compiler drops the ones it does not)."""
+        for name, v in uniforms.items():
+            if name in prog:
+                prog[name].value = v
+
+    def dispatch(self, prog, rows: bool = False, local: int = _LOCAL,
+                 **uniforms: object) -> None:
+        """Run ``prog`` over the image (one invocation per pixel, or per row with
+        ``rows``; ``local``: the program's work group edge) on the current state
+        (bindings 0-3) and spares (4-7)."""
+        self._set(prog, **uniforms)
+        for i, ch in enumerate(_CHANNELS):
+            self.buffers[ch].bind_to_storage_buffer(i)
+            self.spare[ch].bind_to_storage_buffer(4 + i)
+        if rows:
+            prog.run(-(-self.height // _ROWS), 1, 1)
+        else:
+            prog.run(-(-self.width // local), -(-self.height // local), 1)
+        self.ctx.memory_barrier()
+
+    def dispatch_list(self, prog, args, offset: int, **uniforms: object) -> None:
+        """Run ``prog`` with the work groups the GPU wrote to ``args`` at byte ``offset``
+        (indirect dispatch over a list the GPU built)."""
+        self._set(prog, **uniforms)
+        for i, ch in enumerate(_CHANNELS):
+            self.buffers[ch].bind_to_storage_buffer(i)
+            self.spare[ch].bind_to_storage_buffer(4 + i)
+        prog.run_indirect(args, offset)
+        self.ctx.memory_barrier()
+
+    def swap(self, *channels: str) -> None:
+        """The spares of ``channels`` (written by the last pass) become the state."""
+        for ch in channels:
+            self.buffers[ch], self.spare[ch] = self.spare[ch], self.buffers[ch]
+
+    def to_depth(self) -> None:
+        if self.domain == "d":
+            self.dispatch(self._invert)
+            self.domain = "z"
+
+    def to_disparity(self) -> None:
+        if self.domain == "z":
+            self.dispatch(self._invert)
+            self.domain = "d"
+
+    def _check(self, what: str) -> None:
+        err = self.ctx.error
+        if err != "GL_NO_ERROR":
+            raise RenderError(f"OpenGL error {what}: {err}")
+
+    # --- a frame -------------------------------------------------------------------------
+    def simulate(self, depth: np.ndarray, rng: np.random.Generator | None, *,
+                 labels: np.ndarray | None = None, incidence: np.ndarray | None = None,
+                 projector_depth: np.ndarray | None = None) -> SensorOutput:
+        """The effects on a rendered frame, as
+        :meth:`vhgen.sensor.simulator.SensorModel.simulate` (same inputs and outputs;
+        ``disparity`` float32 values as float64). ``rng``: the frame's generator, from
+        which two uint32 words are drawn as the frame's key when an effect is random."""
+        cfg = self.cfg
+        h, w = self.height, self.width
+        z = np.asarray(depth)
+        if z.shape != (h, w):
+            raise ValueError(f"depth {z.shape} does not match the sensor {h}x{w}")
+        if "incidence" in cfg.needs and incidence is None:
+            raise ValueError(f"sensor {cfg.name} needs the incidence (|cos| of the angle "
+                             "between surface normal and viewing ray)")
+        if cfg.random and rng is None:
+            raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
+        key = (0, 0)
+        if cfg.random:
+            assert rng is not None
+            k = rng.integers(0, 2**32, size=2, dtype=np.uint32)
+            key = (int(k[0]), int(k[1]))
+        tex = self.textures
+        tex["depth"].write(np.ascontiguousarray(z, dtype="f4").tobytes())
+        if labels is not None:
+            tex["ids"].write(np.ascontiguousarray(labels, dtype="f4").tobytes())
+        if incidence is not None:
+            tex["inc"].write(np.ascontiguousarray(incidence, dtype="f4").tobytes())
+        tex["depth"].use(0)
+        tex["ids"].use(1)
+        tex["inc"].use(2)
+        self._run(key, want_ids=labels is not None,
+                  inc_component=0 if incidence is not None else -1)
+        return self._read(labels.dtype if labels is not None else None)
+
+    def _run(self, key: tuple[int, int], want_ids: bool, inc_component: int) -> None:
+        load = self._load
+        self._set(load, depth_tex=0, ids_tex=1, inc_tex=2)
+        self.dispatch(load, want_ids=want_ids, inc_component=inc_component)
+        self.domain = "z"
+        for prog in self._programs.values():
+            self._set(prog, key=key)
+        for p in self.passes:
+            self._set_stream(p.index)
+            p.run()
+        self.out.bind_to_storage_buffer(12)
+        self.dispatch(self._finish, is_disparity=self.domain == "d",
+                      d_off=self.cfg.encoding.d_off)
+        self._check("in the sensor passes")
+
+    def _set_stream(self, index: int) -> None:
+        for prog in self._programs.values():
+            self._set(prog, stream=index)
+
+    def _read(self, labels_dtype) -> SensorOutput:
+        h, w = self.height, self.width
+        out = np.frombuffer(self.out.read(), np.uint32).reshape(h, w)
+        flags = np.frombuffer(self.buffers["flags"].read(), np.uint32).reshape(h, w)
+        disp = np.frombuffer(self.spare["val"].read(), np.float32).reshape(h, w)
+        depth_mm = (out & 0xFFFF).astype(np.uint16)
+        valid = depth_mm > 0
+        raw = (out >> 16).astype(np.uint16) if self.cfg.encoding.raw11 else None
+        lab = None
+        if labels_dtype is not None:
+            ids = np.frombuffer(self.buffers["ids"].read(), np.uint32).reshape(h, w)
+            lab = ids.astype(labels_dtype)
+        masks = {}
+        for i, cause in enumerate(HOLE_CAUSES):
+            m = (flags & np.uint32(2 << i)) != 0
+            if cause == "no_hit" or m.any():
+                masks[cause] = m
+        holes = {c: int(np.count_nonzero(m)) for c, m in masks.items()}
+        return SensorOutput(depth_mm, valid, lab, raw, disp.astype(np.float64), holes, masks)
+
+    def release(self) -> None:
+        """Release the programs, buffers and textures."""
+        _park(self.ctx)
+        objs = [*self._programs.values(), *self.buffers.values(), *self.spare.values(),
+                *self.aux, self.counts, self.out, self.changed, *self.textures.values()]
+        if self.pattern is not None:
+            objs.append(self.pattern)
+        for o in objs:
+            o.release()
+        self._programs = {}
+
+
+# --- the passes, one per effect (specs in vhgen.sensor.effects) -------------------------
+
+class RangeGatePass(GLPass[RangeGate], spec=RangeGate):
+    def __init__(self, spec: RangeGate, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_pixel.comp", EFFECT="RANGE_GATE")
+
+    def run(self) -> None:
+        m = self.model
+        m.to_depth()
+        m.dispatch(self.prog, a=self.spec.z_min_m, b=self.spec.z_max_m)
+
+
+class RangeDropoutPass(GLPass[RangeDropout], spec=RangeDropout):
+    def __init__(self, spec: RangeDropout, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_pixel.comp", EFFECT="RANGE_DROPOUT")
+
+    def run(self) -> None:
+        p, m = self.spec, self.model
+        m.to_depth()
+        m.dispatch(self.prog, a=p.z_start_m, b=p.z_end_m, c=p.power, model=p.blob_px)
+
+
+class AxialNoisePass(GLPass[AxialNoise], spec=AxialNoise):
+    def __init__(self, spec: AxialNoise, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_pixel.comp", EFFECT="AXIAL_NOISE")
+
+    def run(self) -> None:
+        p, m = self.spec, self.model
+        if p.model == "disparity":
+            m.to_disparity()
+        else:
+            m.to_depth()
+        m.dispatch(self.prog, a=p.sigma_px, b=float(p.angle_term),
+                   model=_AXIAL_MODELS[p.model])
+
+
+class DropoutPass(GLPass[Dropout], spec=Dropout):
+    def __init__(self, spec: Dropout, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_pixel.comp", EFFECT="DROPOUT")
+        intr = model.cfg.intrinsics
+        self.intr = (intr.fx, intr.fy, intr.cx, intr.cy)
+
+    def run(self) -> None:
+        p, m = self.spec, self.model
+        m.to_depth()
+        # albedo < 0.01 + 0.16 r  <=>  r > (albedo - 0.01) / 0.16; -1: no range rule
+        r_max = (p.albedo - 0.01) / 0.16 if p.range_rule else -1.0
+        if p.range_rule and r_max < 0:
+            r_max = 0.0  # every range is too far: the CPU's r > r_max for r >= 0
+        m.dispatch(self.prog, a=float(np.cos(np.deg2rad(p.max_angle_deg))), b=r_max,
+                   intr=self.intr)
+
+
+class QuantisationPass(GLPass[DisparityQuantisation], spec=DisparityQuantisation):
+    def __init__(self, spec: DisparityQuantisation, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_pixel.comp", EFFECT="QUANTISE")
+
+    def run(self) -> None:
+        self.model.to_disparity()
+        self.model.dispatch(self.prog, a=self.spec.step_px)
+
+
+class ProjectorShadowPass(GLPass[ProjectorShadow], spec=ProjectorShadow):
+    def __init__(self, spec: ProjectorShadow, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_scan.comp")
+
+    def run(self) -> None:
+        m = self.model
+        m.to_disparity()
+        m.dispatch(self.prog, rows=True, scale=1.0, right=m.cfg.baseline_m > 0,
+                   cause=HOLE_CAUSES.index("shadow"))
+
+
+class RegistrationPass(GLPass[Registration], spec=Registration):
+    def __init__(self, spec: Registration, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.scan = model.program("sensor_scan.comp")
+        self.band = model.program("sensor_pixel.comp", EFFECT="BAND")
+
+    def run(self) -> None:
+        p, m = self.spec, self.model
+        if p.ir_offset_m != 0.0:
+            m.to_disparity()
+            m.dispatch(self.scan, rows=True, scale=abs(p.ir_offset_m) / m.cfg.baseline_m,
+                       right=p.ir_offset_m > 0, cause=HOLE_CAUSES.index("registration"))
+        if p.left_px or p.right_px or p.top_px or p.bottom_px:
+            m.dispatch(self.band, band=(p.left_px, p.right_px, p.top_px, p.bottom_px))
+
+
+class LateralNoisePass(GLPass[LateralNoise], spec=LateralNoise):
+    def __init__(self, spec: LateralNoise, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.prog = model.program("sensor_lateral.comp")
+
+    def run(self) -> None:
+        m = self.model
+        m.to_depth()
+        m.dispatch(self.prog, sigma_px=self.spec.sigma_px, nguyen=self.spec.model == "nguyen")
+        m.swap(*_CHANNELS)
+
+
+class CorrelationWindowPass(GLPass[CorrelationWindow], spec=CorrelationWindow):
+    def __init__(self, spec: CorrelationWindow, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        if spec.splat_radius_px ** 2 > 254.0:
+            raise RenderError("correlation_window: splat radius above sqrt(254) px (15.9)")
+        cfg = model.cfg
+        if model.pattern is None:
+            pat = dot_pattern(cfg.pattern_seed, cfg.intrinsics.height, cfg.intrinsics.width,
+                              cfg.dot_density)
+            model.pattern = model.ctx.buffer(np.ascontiguousarray(pat, np.uint32).tobytes())
+            model.pattern_width = pat.shape[1]
+        if model.width * model.height > 1 << 24:
+            raise RenderError("the GL correlation window takes images of up to 2^24 pixels "
+                              "(its splat keys hold a pixel index in 24 bits): use "
+                              "sensor.backend: cpu")
+        # window and footprint are compile-time constants: the loops unroll
+        consts = {"HALF": spec.window // 2, "SPLAT_R": max(int(spec.splat_radius_px), 0),
+                  "SPLAT_R2": f"{spec.splat_radius_px ** 2!r}"}
+        self.progs = {s: model.program("sensor_window.comp", STEP=s, **consts)
+                      for s in ("DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT")}
+
+    def run(self) -> None:
+        p, m = self.spec, self.model
+        m.to_disparity()
+        for i, b in enumerate(m.aux[:2]):
+            b.bind_to_storage_buffer(8 + i)
+        m.pattern.bind_to_storage_buffer(10)
+        m.aux[2].bind_to_storage_buffer(11)
+        m.aux[3].bind_to_storage_buffer(12)
+        m.counts.bind_to_storage_buffer(13)
+        m.counts.write(np.zeros(8, np.uint32).tobytes())
+        pr = self.progs
+        m.dispatch(pr["DOTS"], pattern_width=m.pattern_width, pad=PATTERN_PAD)
+        self._args(0)
+        m.dispatch_list(pr["ACCEPT"], m.counts, 0, frac=p.frac, inlier_px=p.inlier_px)
+        self._args(1)
+        m.dispatch_list(pr["SCATTER"], m.counts, 12)
+        m.dispatch(pr["SPLAT"])
+        m.swap("val")
+
+    def _args(self, which: int) -> None:
+        """The work groups of list ``which`` (0 candidates, 1 accepted dots)."""
+        prog = self.progs["ARGS"]
+        prog["which"].value = which
+        prog.run(1, 1, 1)
+        self.model.ctx.memory_barrier()
+
+
+class SpeckleFilterPass(GLPass[SpeckleFilter], spec=SpeckleFilter):
+    def __init__(self, spec: SpeckleFilter, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        self.progs = {s: model.program("sensor_speckle.comp", STEP=s)
+                      for s in ("INIT", "SCAN", "RESOLVE", "COUNT", "REMOVE")}
+
+    def run(self) -> None:
+        m = self.model
+        m.aux[0].bind_to_storage_buffer(8)
+        m.aux[1].bind_to_storage_buffer(9)
+        m.changed.bind_to_storage_buffer(11)
+        zero = np.zeros(1, np.uint32).tobytes()
+        m.dispatch(self.progs["INIT"])
+        # label equivalence converges in a few rounds (each halves the chains); the flag
+        # read is the only wait on the GPU
+        for _ in range(m.width * m.height):
+            m.changed.write(zero)
+            m.dispatch(self.progs["SCAN"])
+            m.dispatch(self.progs["RESOLVE"])
+            if not np.frombuffer(m.changed.read(), np.uint32)[0]:
+                break
+        m.aux[1].clear()
+        m.dispatch(self.progs["COUNT"])
+        m.dispatch(self.progs["REMOVE"], max_area=self.spec.max_area_px)
