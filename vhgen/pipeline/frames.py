@@ -27,7 +27,7 @@ from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import unpack_ids
 from vhgen.scene.truth import joint_visibility
 from vhgen.sensor.composite import simulate_over_real
-from vhgen.sensor.simulator import SensorModel
+from vhgen.sensor.simulator import FrameSensor, SensorModel
 from vhgen.store.manifest import write_part
 from vhgen.store.record import FrameRecord, PersonRecord
 from vhgen.store.zarr_store import write_shard
@@ -85,7 +85,13 @@ class FrameGenerator:
         self.describer = FrameDescriber(job, bodies)
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
-        self.sensor = SensorModel(cfg.sensor)
+        self.sensor: FrameSensor
+        if cfg.sensor.backend == "gl":  # the effects as compute passes on this context
+            from vhgen.render.sensor_gl import GLSensorModel
+
+            self.sensor = GLSensorModel(self.ctx, cfg.sensor)
+        else:
+            self.sensor = SensorModel(cfg.sensor)
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
                                            near=cfg.camera.near_m, far=cfg.camera.far_m,
                                            skinning=cfg.skinning,
@@ -216,6 +222,9 @@ class FrameGenerator:
     def close(self) -> None:
         self.scene.release()
         self.renderer.release()
+        release = getattr(self.sensor, "release", None)
+        if release is not None:  # the GL sensor's buffers and programs
+            release()
 
 
 def _with_shard(record: FrameRecord, shard: int) -> FrameRecord:

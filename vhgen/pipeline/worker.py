@@ -47,10 +47,11 @@ class FrameWorker:
             # with arrays of the types and layouts the renderer hands over (a kernel is
             # compiled per signature): float32 depth, uint32 packed ids, float32 incidence
             h, w = cfg.sensor.intrinsics.height, cfg.sensor.intrinsics.width
-            SensorModel(cfg.sensor).simulate(
-                np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
-                labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
-                projector_depth=np.full((h, w), 2.0, np.float32))
+            if cfg.sensor.backend == "cpu":  # (the GL sensor compiles its passes in load)
+                SensorModel(cfg.sensor).simulate(
+                    np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
+                    labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
+                    projector_depth=np.full((h, w), 2.0, np.float32))
         except VhgenError as e:
             self.setup_error = e
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from vhgen.sensor.effects import CorrelationWindow, Registration, SpeckleFilter
 from vhgen.sensor.sensor_kernels import encode_raw11
-from vhgen.sensor.simulator import SensorModel, SensorOutput
+from vhgen.sensor.simulator import FrameSensor, SensorOutput
 
 # how far (px) any shipped effect but the shadow bands reaches from a pixel: the
 # correlation window's half width and splat radius (at most 15 + 10 px) and lateral noise
@@ -41,7 +41,7 @@ def real_depth_m(depth_mm: np.ndarray) -> np.ndarray:
     return (np.asarray(depth_mm, np.float64) / 1000.0).astype(np.float32)
 
 
-def reach_px(model: SensorModel, z_near_m: float) -> tuple[int, int]:
+def reach_px(model: FrameSensor, z_near_m: float) -> tuple[int, int]:
     """(rows, columns): how far from a surface at ``z_near_m`` or farther the shipped
     effects can change other pixels: the projector shadow (f b / z px) and the IR
     camera's occlusion band (f |offset| / z px) sideways, the correlation window and
@@ -84,7 +84,7 @@ def _islands(cfg, valid: np.ndarray, zone: np.ndarray) -> np.ndarray | None:
     return small[lab]
 
 
-def simulate_over_real(model: SensorModel, depth: np.ndarray, rng: np.random.Generator | None,
+def simulate_over_real(model: FrameSensor, depth: np.ndarray, rng: np.random.Generator | None,
                        *, real_mm: np.ndarray, labels: np.ndarray, real_label: int,
                        incidence: np.ndarray | None = None) -> SensorOutput:
     """The sensor on a composited frame (see the module docstring).

@@ -8,7 +8,7 @@ description. The output encoding is applied here and nowhere else.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -21,7 +21,8 @@ from vhgen.sensor.sensor_kernels import encode_raw11, finish, sanitise
 from vhgen.sensor.stage import Stage, compile_stage
 from vhgen.sensor.state import SensorState
 
-__all__ = ["PATTERN_PAD", "SensorConfig", "SensorModel", "SensorOutput", "dot_pattern"]
+__all__ = ["PATTERN_PAD", "FrameSensor", "SensorConfig", "SensorModel", "SensorOutput",
+           "dot_pattern"]
 
 
 @dataclass
@@ -35,6 +36,19 @@ class SensorOutput:
     disparity: np.ndarray  # float64 px, 0 where invalid
     holes: dict[str, int]  # cause -> pixel count
     hole_masks: dict[str, np.ndarray] | None = None  # cause -> (H, W) bool, the pixels
+
+
+class FrameSensor(Protocol):
+    """What runs a sensor on frames: :class:`SensorModel` (``backend: cpu``) or the GL
+    passes (``backend: gl``, :class:`vhgen.render.sensor_gl.GLSensorModel`)."""
+
+    cfg: SensorConfig
+
+    def simulate(self, depth: np.ndarray, rng: np.random.Generator | None, *,
+                 labels: np.ndarray | None = None, incidence: np.ndarray | None = None,
+                 projector_depth: np.ndarray | None = None) -> SensorOutput:
+        """One frame's output (see :meth:`SensorModel.simulate`)."""
+        ...
 
 
 class SensorModel:
