@@ -1,6 +1,7 @@
 """Sensor model speed: ms per 640x480 frame for every sensor config, on one core.
 
     .venv/bin/python benchmarks/bench_sensor.py [--repeats 30] [--backend egl]
+                                                [--backends cpu,gl]
 
 Frames: a posed human alone (the dataset's usual frame), the same human in front of a
 wall at 3.5 m (every pixel valid: the worst case), and an all-valid step edge. Each
@@ -8,7 +9,10 @@ config runs ``--repeats`` times per frame; the table shows the median (and the 9
 percentile). Side by side on the same frame: the dot-gated 9x9 correlation window as a
 straightforward NumPy loop in the style of the public ICL-NUIM simkinect filter (one
 Python iteration per dot pixel, NumPy on each 9x9 window) against vhgen's compiled kernel.
-Run with NUMBA_NUM_THREADS=1; the kernels are single-threaded anyway.
+Run with NUMBA_NUM_THREADS=1; the kernels are single-threaded anyway. Rows marked [gl]
+time ``sensor.backend: gl`` (the compute passes of vhgen.render.sensor_gl, read back) on
+the context's renderer: on llvmpipe that is the CPU again (LP_NUM_THREADS=1, as in the
+frame path's workers); GPU timings need a GPU node (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -16,10 +20,13 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from typing import Any
 
 import numpy as np
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+# llvmpipe as the frame path's workers run it (one thread each); a GPU runs the GL rows
+os.environ.setdefault("LP_NUM_THREADS", "1")
 
 
 def icl_style_window(disp: np.ndarray, dots: np.ndarray, invalid: float = 0.0,
@@ -59,9 +66,11 @@ def icl_style_window(disp: np.ndarray, dots: np.ndarray, invalid: float = 0.0,
 
 def main() -> None:
     from vhgen.assets import resolve_asset_dir
+    from vhgen.errors import ConfigError
     from vhgen.mocap.clips import builtin_motion_path
     from vhgen.quality.fidelity_scenes import human_frame, suite
     from vhgen.render.context import create_context
+    from vhgen.render.sensor_gl import GLSensorModel
     from vhgen.sensor.sensor_kernels import correlation_window, dots_from_pattern
     from vhgen.sensor.simulator import PATTERN_PAD, SensorConfig, SensorModel
     from vhgen.yamlio import configs_dir
@@ -69,6 +78,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--backend", default="egl")
+    ap.add_argument("--backends", default="cpu,gl",
+                    help="sensor backends to time: cpu, gl or cpu,gl")
     args = ap.parse_args()
     ref = SensorConfig.load("kinect_v1_full")
     intr, b = ref.intrinsics, ref.baseline_m
@@ -80,10 +91,22 @@ def main() -> None:
     names = sorted(p.stem for p in (configs_dir() / "sensors").glob("*.yaml")
                    if p.stem != "kinect_v1_reference")
     print(f"\nsensor speed, ms per {intr.width}x{intr.height} frame, one core, median "
-          f"(p90) of {args.repeats}")
-    print(f"{'config':26s}" + "".join(f"{fr.name:>24s}" for fr in frames))
+          f"(p90) of {args.repeats}; [gl]: the GL passes on {ctx.info['GL_RENDERER']}, "
+          "LP_NUM_THREADS=" + os.environ.get("LP_NUM_THREADS", "-"))
+    print(f"{'config':34s}" + "".join(f"{fr.name:>24s}" for fr in frames))
+    rows: list[tuple[str, Any]] = []
     for name in names:
-        m = SensorModel(SensorConfig.load(name))
+        cfg = SensorConfig.load(name)
+        if "cpu" in args.backends.split(","):
+            rows.append((name, SensorModel(cfg)))
+        if "gl" in args.backends.split(","):
+            try:
+                gl_cfg = cfg.with_backend("gl")
+            except ConfigError as e:
+                print(f"{name + ' [gl]':34s}  no GL pass: {e.field}")
+                continue
+            rows.append((f"{name} [gl]", GLSensorModel(ctx, gl_cfg)))
+    for name, m in rows:
         cells = []
         for fr in frames:
             kw = dict(labels=fr.labels, incidence=fr.incidence,
@@ -95,7 +118,7 @@ def main() -> None:
                 m.simulate(fr.depth, np.random.default_rng(i), **kw)
                 ts.append((time.perf_counter() - t) * 1000)
             cells.append(f"{np.median(ts):8.1f} ({np.percentile(ts, 90):5.1f})")
-        print(f"{name:26s}" + "".join(f"{c:>24s}" for c in cells))
+        print(f"{name:34s}" + "".join(f"{c:>24s}" for c in cells))
 
     fr = frames[1]
     fb = intr.fx * b

@@ -16,6 +16,7 @@ import pytest
 from vhgen.errors import ConfigError
 from vhgen.sensor.simulator import SensorConfig, SensorModel
 from vhgen.sensor.spec import effect_types
+from vhgen.yamlio import configs_dir
 
 F, B = 525.0, 0.05
 H, W = 120, 160
@@ -62,24 +63,36 @@ def test_every_effect_with_gl_has_a_pass_and_no_other():
 
 
 def test_backend_gl_refuses_effects_without_a_pass_at_load(tmp_path):
+    from dataclasses import dataclass
+
+    from vhgen.sensor.effects import RangeGate
+    from vhgen.sensor.sensor_config import check_backend
+
     with pytest.raises(ConfigError) as e:
         _cfg("  - structured_light: {}\n", tmp_path, backend="gl")
     msg = str(e.value)
     assert "effects[0].structured_light" in msg and "backend: cpu" in msg
     assert "\n" not in msg
-    with pytest.raises(ConfigError, match=r"effects\[1\]\.projector_shadow\.method: exact"):
-        _cfg("  - range_gate: {}\n  - projector_shadow: {method: exact}\n", tmp_path,
-             backend="gl")
     with pytest.raises(ConfigError, match="backend: must be one of cpu, gl, got 'cuda'"):
         _cfg("  - range_gate: {}\n", tmp_path, backend="cuda")
-    # the same sensors load on the CPU, and every shipped preset but the structured-light
-    # reference and the exact shadows runs on GL
-    _cfg("  - structured_light: {}\n", tmp_path)
-    for name in ("openni_525", "openni_525_gate4m", "kinect_v1_full", "kinect_v1_fast",
-                 "kinect_v1_full_gate4m", "ideal"):
-        assert SensorConfig.load(name).with_backend("gl").backend == "gl"
-    with pytest.raises(ConfigError, match="lens_distortion"):
-        SensorConfig.load("kinect_v1_metrology").with_backend("gl")
+    _cfg("  - structured_light: {}\n", tmp_path)  # the CPU runs it
+
+    @dataclass(frozen=True)
+    class NearGate(RangeGate):  # not registered: a pass that cannot take some values
+        def gl_unsupported(self):
+            return ("z_min_m", "below 1 m has no GL pass") if self.z_min_m < 1 else None
+
+    with pytest.raises(ConfigError, match=r"x.yaml: effects\[1\]\.range_gate\.z_min_m: "
+                                          r"below 1 m has no GL pass: backend gl cannot"):
+        check_backend((RangeGate(), NearGate(z_min_m=0.5)), "gl", "x.yaml")
+    assert check_backend((NearGate(z_min_m=1.5),), "gl", "x.yaml") == "gl"
+    # every shipped preset but the structured-light reference runs on GL
+    for p in (configs_dir() / "sensors").glob("*.yaml"):
+        if p.stem == "kinect_v1_reference":
+            with pytest.raises(ConfigError, match="structured_light"):
+                SensorConfig.load(p).with_backend("gl")
+        else:
+            assert SensorConfig.load(p).with_backend("gl").backend == "gl"
 
 
 def test_backend_shows_in_the_description_only_when_gl():
@@ -166,6 +179,34 @@ def test_correlation_window_matches_the_cpu(gl_ctx, tmp_path):
     assert cpu.holes["window"] > 500
     assert abs(cpu.holes["window"] - gl.holes["window"]) <= 30
     np.testing.assert_array_equal(gl.labels, lab)  # the window moves no label
+
+
+@pytest.mark.gl
+def test_exact_shadow_matches_the_cpu(gl_ctx, tmp_path):
+    cfg = _cfg("  - projector_shadow: {method: exact, tolerance: 0.01}\n", tmp_path)
+    z = _steps()
+    # the projector's view of fronto-parallel planes: each pixel moved by its disparity
+    proj = np.zeros_like(z)
+    v, u = np.mgrid[0:H, 0:W]
+    up = np.clip(np.rint(u - F * B / z).astype(int), 0, W - 1)
+    order = np.argsort(-z, axis=None)  # far first, so the nearest is written last
+    proj[v.reshape(-1)[order], up.reshape(-1)[order]] = z.reshape(-1)[order]
+    cpu, gl = _both(gl_ctx, cfg, z, projector_depth=proj)
+    assert cpu.holes["shadow"] > 100
+    _agree(cpu, gl, max_pixels=0)
+
+
+@pytest.mark.gl
+def test_lens_distortion_matches_the_cpu(gl_ctx, tmp_path):
+    cfg = _cfg("  - lens_distortion: {}\n  - range_gate: {z_min_m: 0.5, z_max_m: 4}\n",
+               tmp_path)
+    z = _steps()
+    lab = np.arange(z.size, dtype=np.uint32).reshape(z.shape)
+    cpu, gl = _both(gl_ctx, cfg, z, labels=lab)
+    assert cpu.holes["distortion"] > 100
+    _agree(cpu, gl, max_pixels=0)
+    np.testing.assert_array_equal(cpu.labels, gl.labels)
+    np.testing.assert_array_equal(cpu.hole_masks["distortion"], gl.hole_masks["distortion"])
 
 
 @pytest.mark.gl

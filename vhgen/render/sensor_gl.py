@@ -29,6 +29,7 @@ from vhgen.sensor.effects import (
     DisparityQuantisation,
     Dropout,
     LateralNoise,
+    LensDistortion,
     ProjectorShadow,
     RangeDropout,
     RangeGate,
@@ -39,6 +40,7 @@ from vhgen.sensor.pattern import PATTERN_PAD, dot_pattern
 from vhgen.sensor.sensor_config import SensorConfig
 from vhgen.sensor.simulator import SensorOutput
 from vhgen.sensor.spec import EffectSpec
+from vhgen.sensor.stages import undistort_map
 from vhgen.sensor.state import HOLE_CAUSES
 
 S = TypeVar("S", bound=EffectSpec)
@@ -51,7 +53,8 @@ _ROWS = 32  # work group of the row scans
 _CONSTANTS: dict[str, object] = {c.upper(): i for i, c in enumerate(HOLE_CAUSES)}
 _CONSTANTS.update({k: i + 1 for i, k in enumerate((
     "INVERT", "RANGE_GATE", "RANGE_DROPOUT", "AXIAL_NOISE", "DROPOUT", "QUANTISE", "BAND",
-    "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "INIT", "SCAN", "RESOLVE", "COUNT", "REMOVE"))})
+    "EXACT_SHADOW", "LATERAL", "LENS",
+    "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "ROWS", "MERGE", "COMPRESS", "COUNT", "REMOVE"))})
 _AXIAL_MODELS = {"disparity": 0, "khoshelham": 1, "nguyen": 2, "barron_malik": 3}
 _CHANNELS = ("val", "flags", "ids", "inc")  # the state, bindings 0-3 (spares 4-7)
 
@@ -113,9 +116,10 @@ class GLSensorModel:
         self.aux = [ctx.buffer(reserve=4 * n) for _ in range(4)]
         self.counts = ctx.buffer(reserve=4 * 8)
         self.out = ctx.buffer(reserve=4 * n)
-        self.changed = ctx.buffer(reserve=4)
         size = (self.width, self.height)
-        self.textures = {k: ctx.texture(size, 1, dtype="f4") for k in ("depth", "ids", "inc")}
+        self.textures = {k: ctx.texture(size, 1, dtype="f4")
+                         for k in ("depth", "ids", "inc", "proj")}
+        self.source: Any = None  # lens distortion's source pixels
         self.pattern: Any = None
         self.pattern_width = 0
         self.domain = "z"
@@ -213,6 +217,8 @@ class GLSensorModel:
         if "incidence" in cfg.needs and incidence is None:
             raise ValueError(f"sensor {cfg.name} needs the incidence (|cos| of the angle "
                              "between surface normal and viewing ray)")
+        if "projector_depth" in cfg.needs and projector_depth is None:
+            raise ValueError(f"sensor {cfg.name} needs a projector-view depth image")
         if cfg.random and rng is None:
             raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
         key = (0, 0)
@@ -226,9 +232,10 @@ class GLSensorModel:
             tex["ids"].write(np.ascontiguousarray(labels, dtype="f4").tobytes())
         if incidence is not None:
             tex["inc"].write(np.ascontiguousarray(incidence, dtype="f4").tobytes())
-        tex["depth"].use(0)
-        tex["ids"].use(1)
-        tex["inc"].use(2)
+        if projector_depth is not None and "projector_depth" in cfg.needs:
+            tex["proj"].write(np.ascontiguousarray(projector_depth, dtype="f4").tobytes())
+        for unit, name in enumerate(("depth", "ids", "inc", "proj")):
+            tex[name].use(unit)
         self._run(key, want_ids=labels is not None,
                   inc_component=0 if incidence is not None else -1)
         return self._read(labels.dtype if labels is not None else None)
@@ -276,9 +283,8 @@ class GLSensorModel:
         """Release the programs, buffers and textures."""
         _park(self.ctx)
         objs = [*self._programs.values(), *self.buffers.values(), *self.spare.values(),
-                *self.aux, self.counts, self.out, self.changed, *self.textures.values()]
-        if self.pattern is not None:
-            objs.append(self.pattern)
+                *self.aux, self.counts, self.out, *self.textures.values()]
+        objs += [b for b in (self.pattern, self.source) if b is not None]
         for o in objs:
             o.release()
         self._programs = {}
@@ -354,13 +360,20 @@ class QuantisationPass(GLPass[DisparityQuantisation], spec=DisparityQuantisation
 class ProjectorShadowPass(GLPass[ProjectorShadow], spec=ProjectorShadow):
     def __init__(self, spec: ProjectorShadow, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
-        self.prog = model.program("sensor_scan.comp")
+        if spec.method == "screen_space":
+            self.prog = model.program("sensor_scan.comp")
+        else:
+            self.prog = model.program("sensor_pixel.comp", EFFECT="EXACT_SHADOW")
 
     def run(self) -> None:
         m = self.model
-        m.to_disparity()
-        m.dispatch(self.prog, rows=True, scale=1.0, right=m.cfg.baseline_m > 0,
-                   cause=HOLE_CAUSES.index("shadow"))
+        if self.spec.method == "screen_space":
+            m.to_disparity()
+            m.dispatch(self.prog, rows=True, scale=1.0, right=m.cfg.baseline_m > 0,
+                       cause=HOLE_CAUSES.index("shadow"))
+        else:  # the projector's view was uploaded with the frame (texture unit 3)
+            m.to_depth()
+            m.dispatch(self.prog, a=self.spec.tolerance, proj_tex=3)
 
 
 class RegistrationPass(GLPass[Registration], spec=Registration):
@@ -379,10 +392,26 @@ class RegistrationPass(GLPass[Registration], spec=Registration):
             m.dispatch(self.band, band=(p.left_px, p.right_px, p.top_px, p.bottom_px))
 
 
+class LensDistortionPass(GLPass[LensDistortion], spec=LensDistortion):
+    def __init__(self, spec: LensDistortion, model: GLSensorModel, index: int):
+        super().__init__(spec, model, index)
+        intr = model.cfg.intrinsics
+        vs, us, inside = undistort_map(spec, intr)
+        src = np.where(inside, vs * intr.width + us, 0xFFFFFFFF).astype(np.uint32)
+        model.source = model.ctx.buffer(src.tobytes())
+        self.prog = model.program("sensor_move.comp", EFFECT="LENS")
+
+    def run(self) -> None:
+        m = self.model
+        m.source.bind_to_storage_buffer(8)
+        m.dispatch(self.prog)
+        m.swap(*_CHANNELS)
+
+
 class LateralNoisePass(GLPass[LateralNoise], spec=LateralNoise):
     def __init__(self, spec: LateralNoise, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
-        self.prog = model.program("sensor_lateral.comp")
+        self.prog = model.program("sensor_move.comp", EFFECT="LATERAL")
 
     def run(self) -> None:
         m = self.model
@@ -443,23 +472,14 @@ class SpeckleFilterPass(GLPass[SpeckleFilter], spec=SpeckleFilter):
     def __init__(self, spec: SpeckleFilter, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
         self.progs = {s: model.program("sensor_speckle.comp", STEP=s)
-                      for s in ("INIT", "SCAN", "RESOLVE", "COUNT", "REMOVE")}
+                      for s in ("ROWS", "MERGE", "COMPRESS", "COUNT", "REMOVE")}
 
     def run(self) -> None:
         m = self.model
         m.aux[0].bind_to_storage_buffer(8)
         m.aux[1].bind_to_storage_buffer(9)
-        m.changed.bind_to_storage_buffer(11)
-        zero = np.zeros(1, np.uint32).tobytes()
-        m.dispatch(self.progs["INIT"])
-        # label equivalence converges in a few rounds (each halves the chains); the flag
-        # read is the only wait on the GPU
-        for _ in range(m.width * m.height):
-            m.changed.write(zero)
-            m.dispatch(self.progs["SCAN"])
-            m.dispatch(self.progs["RESOLVE"])
-            if not np.frombuffer(m.changed.read(), np.uint32)[0]:
-                break
         m.aux[1].clear()
-        m.dispatch(self.progs["COUNT"])
+        m.dispatch(self.progs["ROWS"], rows=True)
+        for step in ("MERGE", "COMPRESS", "COUNT"):
+            m.dispatch(self.progs[step])
         m.dispatch(self.progs["REMOVE"], max_area=self.spec.max_area_px)

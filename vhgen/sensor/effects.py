@@ -53,6 +53,7 @@ class LensDistortion(EffectSpec, name="lens_distortion"):
 
     READS = MEASURE
     WRITES = MEASURE | {"labels", "incidence", "pixel_grid"}  # labels, incidence: when given
+    GL = True
 
 
 @dataclass(frozen=True)
@@ -124,11 +125,6 @@ class ProjectorShadow(EffectSpec, name="projector_shadow"):
     @property
     def reads(self) -> frozenset[str]:
         return MEASURE | {"projector_depth"} if self.method == "exact" else MEASURE
-
-    def gl_unsupported(self) -> tuple[str, str] | None:
-        if self.method == "exact":
-            return "method", "exact has no GL pass yet (screen_space has)"
-        return None
 
 
 @dataclass(frozen=True)

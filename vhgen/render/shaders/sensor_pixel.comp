@@ -11,6 +11,7 @@ uniform float d_;
 uniform int model;
 uniform ivec4 band;  // registration: left, right, top, bottom (px)
 uniform vec4 intr;   // fx, fy, cx, cy
+uniform sampler2D proj_tex;  // EXACT_SHADOW: planar depth seen from the projector
 
 const float DEG85 = 1.4835298641951802;
 
@@ -81,6 +82,21 @@ void main() {
     if (is_valid(p)) {
         float dq = floor(val[p] / a + 0.5) * a;
         if (dq <= 0.0) remove_pixel(p, NOISE); else val[p] = dq;
+    }
+#elif EFFECT == EXACT_SHADOW
+    // a = tolerance (depth domain): shadowed when the projector sees a surface nearer
+    // than the pixel's own by more than the tolerance at both columns around where the
+    // pixel's ray meets the projector's image row, or outside that image
+    if (is_valid(p)) {
+        float z = val[p];
+        float up = float(q.x) - fb / z;
+        int lo = clamp(int(floor(up)), 0, size.x - 1);
+        int hi = clamp(lo + 1, 0, size.x - 1);
+        float near = z * (1.0 - a);
+        float z_lo = texelFetch(proj_tex, ivec2(lo, q.y), 0).r;
+        float z_hi = texelFetch(proj_tex, ivec2(hi, q.y), 0).r;
+        bool occluded = z_lo > 0.0 && z_lo < near && z_hi > 0.0 && z_hi < near;
+        if (occluded || up < 0.0 || up > float(size.x - 1)) remove_pixel(p, SHADOW);
     }
 #elif EFFECT == BAND
     // registration: the border outside the IR camera's view
