@@ -52,8 +52,7 @@ _ROWS = 32  # work group of the row scans
 # names the shaders use for the hole causes, effects and steps (#defines)
 _CONSTANTS: dict[str, object] = {c.upper(): i for i, c in enumerate(HOLE_CAUSES)}
 _CONSTANTS.update({k: i + 1 for i, k in enumerate((
-    "INVERT", "RANGE_GATE", "RANGE_DROPOUT", "AXIAL_NOISE", "DROPOUT", "QUANTISE", "BAND",
-    "EXACT_SHADOW", "LATERAL", "LENS",
+    "LATERAL", "LENS",
     "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "ROWS", "MERGE", "COMPRESS", "COUNT", "REMOVE"))})
 _AXIAL_MODELS = {"disparity": 0, "khoshelham": 1, "nguyen": 2, "barron_malik": 3}
 _CHANNELS = ("val", "flags", "ids", "inc")  # the state, bindings 0-3 (spares 4-7)
@@ -84,12 +83,19 @@ class GLPass(Generic[S]):
         self.index = index  # the effect's position: its random stream
 
     def run(self) -> None:
+        """Queue (:meth:`GLSensorModel.pointwise`) or dispatch this effect's steps."""
         raise NotImplementedError
 
 
 class GLSensorModel:
     """Runs a :class:`SensorConfig` with GL compute passes on a moderngl context (GL 4.3
     or newer); same interface as :class:`~vhgen.sensor.simulator.SensorModel`.
+
+    Per-pixel steps (the domain changes, range gate and dropout, axial noise, dropout,
+    quantisation, the registration border, exact shadows, and the frame's load and the
+    output encoding) are queued with :meth:`pointwise` and run fused, one program per run
+    of them, when a pass that reads other pixels (:meth:`dispatch`) or the end of the frame
+    needs their result: openni_525 is 5 such programs instead of 14 passes.
 
     ctx : a current moderngl context (see :mod:`vhgen.render.context`).
     Raises :class:`RenderError` (one line naming ``sensor.backend: cpu``) when the context
@@ -106,6 +112,7 @@ class GLSensorModel:
         intr = cfg.intrinsics
         self.width, self.height = intr.width, intr.height
         self.fb = intr.fx * cfg.baseline_m
+        self.intr = (intr.fx, intr.fy, intr.cx, intr.cy)
         n = self.width * self.height
         self._programs: dict[tuple[str, tuple[tuple[str, object], ...]], Any] = {}
         self.buffers: dict[str, Any] = {}
@@ -123,6 +130,12 @@ class GLSensorModel:
         self.pattern: Any = None
         self.pattern_width = 0
         self.domain = "z"
+        self.stream = 0  # the running effect's position: its random stream
+        self._key = (0, 0)
+        # queued per-pixel steps: (function, 4 floats, 4 ints, stream), and whether the
+        # queue starts with the frame's load
+        self._queue: list[tuple[str, tuple[float, ...], tuple[int, ...], int]] = []
+        self._load: dict[str, object] | None = None
         self.passes: list[GLPass[Any]] = []
         for i, e in enumerate(cfg.effects):
             cls = _PASSES.get(type(e))
@@ -133,9 +146,6 @@ class GLSensorModel:
                                   + (f" ({gap[0]}: {gap[1]})" if gap and gap[0] else "")
                                   + ": use sensor.backend: cpu")
             self.passes.append(cls(e, self, i))
-        self._load = self.program("sensor_load.comp")
-        self._finish = self.program("sensor_finish.comp")
-        self._invert = self.program("sensor_pixel.comp", EFFECT="INVERT")
         self._check("compiling the sensor passes")
 
     # --- plumbing ------------------------------------------------------------------------
@@ -145,7 +155,8 @@ class GLSensorModel:
         prog = self._programs.get(k)
         if prog is None:
             prog = self.ctx.compute_shader(_shader(name, {**_CONSTANTS, **defines}))
-            self._set(prog, size=(self.width, self.height), fb=self.fb)
+            self._set(prog, size=(self.width, self.height), fb=self.fb, intr=self.intr,
+                      key=self._key)
             self._programs[k] = prog
         return prog
 
@@ -156,15 +167,56 @@ class GLSensorModel:
             if name in prog:
                 prog[name].value = v
 
+    def _bind_state(self) -> None:
+        for i, ch in enumerate(_CHANNELS):
+            self.buffers[ch].bind_to_storage_buffer(i)
+            self.spare[ch].bind_to_storage_buffer(4 + i)
+
+    def pointwise(self, function: str, a: tuple[float, ...] = (),
+                  n: tuple[int, ...] = ()) -> None:
+        """Queue the per-pixel step ``function`` of ``sensor_pointwise.glsl`` with up to 4
+        numbers ``a`` and 4 integers ``n`` (run by the next :meth:`flush`)."""
+        self._queue.append((function, tuple(map(float, a)), tuple(map(int, n)), self.stream))
+
+    def flush(self, finish: bool = False) -> None:
+        """Run the queued per-pixel steps as one program (with the output encoding after
+        them when ``finish``)."""
+        if not self._queue and self._load is None and not finish:
+            return
+        q = self._queue
+        steps = " ".join(f"{f}(v, f, c, q, p, prm[{i}], iprm[{i}], {s}u);"
+                         for i, (f, _, _, s) in enumerate(q))
+        prog = self.program("sensor_chain.comp", STEPS=steps, NSTEPS=max(len(q), 1),
+                            LOAD=int(self._load is not None), FINISH=int(finish),
+                            FINISH_DISPARITY="true" if self.domain == "d" else "false")
+        if q:
+            prm = np.zeros((len(q), 4), np.float32)
+            iprm = np.zeros((len(q), 4), np.int32)
+            for i, (_, a, n, _) in enumerate(q):
+                prm[i, :len(a)] = a
+                iprm[i, :len(n)] = n
+            # the compiler trims an array to the entries the steps read
+            for name, arr in (("prm", prm), ("iprm", iprm)):
+                if name in prog:
+                    prog[name].write(arr[:prog[name].array_length].tobytes())
+        self._set(prog, **(self._load or {}))
+        if finish:
+            self._set(prog, d_off=self.cfg.encoding.d_off)
+            self.out.bind_to_storage_buffer(12)
+        self._queue = []
+        self._load = None
+        self._bind_state()
+        prog.run(-(-self.width // _LOCAL), -(-self.height // _LOCAL), 1)
+        self.ctx.memory_barrier()
+
     def dispatch(self, prog, rows: bool = False, local: int = _LOCAL,
                  **uniforms: object) -> None:
         """Run ``prog`` over the image (one invocation per pixel, or per row with
         ``rows``; ``local``: the program's work group edge) on the current state
-        (bindings 0-3) and spares (4-7)."""
+        (bindings 0-3) and spares (4-7), after the queued per-pixel steps."""
+        self.flush()
         self._set(prog, **uniforms)
-        for i, ch in enumerate(_CHANNELS):
-            self.buffers[ch].bind_to_storage_buffer(i)
-            self.spare[ch].bind_to_storage_buffer(4 + i)
+        self._bind_state()
         if rows:
             prog.run(-(-self.height // _ROWS), 1, 1)
         else:
@@ -174,10 +226,9 @@ class GLSensorModel:
     def dispatch_list(self, prog, args, offset: int, **uniforms: object) -> None:
         """Run ``prog`` with the work groups the GPU wrote to ``args`` at byte ``offset``
         (indirect dispatch over a list the GPU built)."""
+        self.flush()
         self._set(prog, **uniforms)
-        for i, ch in enumerate(_CHANNELS):
-            self.buffers[ch].bind_to_storage_buffer(i)
-            self.spare[ch].bind_to_storage_buffer(4 + i)
+        self._bind_state()
         prog.run_indirect(args, offset)
         self.ctx.memory_barrier()
 
@@ -188,12 +239,12 @@ class GLSensorModel:
 
     def to_depth(self) -> None:
         if self.domain == "d":
-            self.dispatch(self._invert)
+            self.pointwise("pw_invert")
             self.domain = "z"
 
     def to_disparity(self) -> None:
         if self.domain == "z":
-            self.dispatch(self._invert)
+            self.pointwise("pw_invert")
             self.domain = "d"
 
     def _check(self, what: str) -> None:
@@ -236,28 +287,25 @@ class GLSensorModel:
             tex["proj"].write(np.ascontiguousarray(projector_depth, dtype="f4").tobytes())
         for unit, name in enumerate(("depth", "ids", "inc", "proj")):
             tex[name].use(unit)
-        self._run(key, want_ids=labels is not None,
-                  inc_component=0 if incidence is not None else -1)
+        self._run(key, {"depth_tex": 0, "ids_tex": 1, "inc_tex": 2, "proj_tex": 3,
+                        "want_ids": labels is not None,
+                        "inc_component": 0 if incidence is not None else -1})
         return self._read(labels.dtype if labels is not None else None)
 
-    def _run(self, key: tuple[int, int], want_ids: bool, inc_component: int) -> None:
-        load = self._load
-        self._set(load, depth_tex=0, ids_tex=1, inc_tex=2)
-        self.dispatch(load, want_ids=want_ids, inc_component=inc_component)
+    def _run(self, key: tuple[int, int], load: dict[str, object]) -> None:
+        """Every pass on the frame whose textures are bound; ``load``: the load step's
+        uniforms (texture units, ids and incidence present)."""
+        if key != self._key:
+            self._key = key
+            for prog in self._programs.values():
+                self._set(prog, key=key)
+        self._load = load
         self.domain = "z"
-        for prog in self._programs.values():
-            self._set(prog, key=key)
         for p in self.passes:
-            self._set_stream(p.index)
+            self.stream = p.index
             p.run()
-        self.out.bind_to_storage_buffer(12)
-        self.dispatch(self._finish, is_disparity=self.domain == "d",
-                      d_off=self.cfg.encoding.d_off)
+        self.flush(finish=True)
         self._check("in the sensor passes")
-
-    def _set_stream(self, index: int) -> None:
-        for prog in self._programs.values():
-            self._set(prog, stream=index)
 
     def _read(self, labels_dtype) -> SensorOutput:
         h, w = self.height, self.width
@@ -271,11 +319,9 @@ class GLSensorModel:
         if labels_dtype is not None:
             ids = np.frombuffer(self.buffers["ids"].read(), np.uint32).reshape(h, w)
             lab = ids.astype(labels_dtype)
-        masks = {}
-        for i, cause in enumerate(HOLE_CAUSES):
-            m = (flags & np.uint32(2 << i)) != 0
-            if cause == "no_hit" or m.any():
-                masks[cause] = m
+        present = int(np.bitwise_or.reduce(flags, axis=None))  # one pass for every cause
+        masks = {cause: (flags & np.uint32(2 << i)) != 0 for i, cause in enumerate(HOLE_CAUSES)
+                 if cause == "no_hit" or present & (2 << i)}
         holes = {c: int(np.count_nonzero(m)) for c, m in masks.items()}
         return SensorOutput(depth_mm, valid, lab, raw, disp.astype(np.float64), holes, masks)
 
@@ -293,49 +339,31 @@ class GLSensorModel:
 # --- the passes, one per effect (specs in vhgen.sensor.effects) -------------------------
 
 class RangeGatePass(GLPass[RangeGate], spec=RangeGate):
-    def __init__(self, spec: RangeGate, model: GLSensorModel, index: int):
-        super().__init__(spec, model, index)
-        self.prog = model.program("sensor_pixel.comp", EFFECT="RANGE_GATE")
-
     def run(self) -> None:
         m = self.model
         m.to_depth()
-        m.dispatch(self.prog, a=self.spec.z_min_m, b=self.spec.z_max_m)
+        m.pointwise("pw_range_gate", (self.spec.z_min_m, self.spec.z_max_m))
 
 
 class RangeDropoutPass(GLPass[RangeDropout], spec=RangeDropout):
-    def __init__(self, spec: RangeDropout, model: GLSensorModel, index: int):
-        super().__init__(spec, model, index)
-        self.prog = model.program("sensor_pixel.comp", EFFECT="RANGE_DROPOUT")
-
     def run(self) -> None:
         p, m = self.spec, self.model
         m.to_depth()
-        m.dispatch(self.prog, a=p.z_start_m, b=p.z_end_m, c=p.power, model=p.blob_px)
+        m.pointwise("pw_range_dropout", (p.z_start_m, p.z_end_m, p.power), (p.blob_px,))
 
 
 class AxialNoisePass(GLPass[AxialNoise], spec=AxialNoise):
-    def __init__(self, spec: AxialNoise, model: GLSensorModel, index: int):
-        super().__init__(spec, model, index)
-        self.prog = model.program("sensor_pixel.comp", EFFECT="AXIAL_NOISE")
-
     def run(self) -> None:
         p, m = self.spec, self.model
         if p.model == "disparity":
             m.to_disparity()
         else:
             m.to_depth()
-        m.dispatch(self.prog, a=p.sigma_px, b=float(p.angle_term),
-                   model=_AXIAL_MODELS[p.model])
+        m.pointwise("pw_axial_noise", (p.sigma_px, float(p.angle_term)),
+                    (_AXIAL_MODELS[p.model],))
 
 
 class DropoutPass(GLPass[Dropout], spec=Dropout):
-    def __init__(self, spec: Dropout, model: GLSensorModel, index: int):
-        super().__init__(spec, model, index)
-        self.prog = model.program("sensor_pixel.comp", EFFECT="DROPOUT")
-        intr = model.cfg.intrinsics
-        self.intr = (intr.fx, intr.fy, intr.cx, intr.cy)
-
     def run(self) -> None:
         p, m = self.spec, self.model
         m.to_depth()
@@ -343,44 +371,35 @@ class DropoutPass(GLPass[Dropout], spec=Dropout):
         r_max = (p.albedo - 0.01) / 0.16 if p.range_rule else -1.0
         if p.range_rule and r_max < 0:
             r_max = 0.0  # every range is too far: the CPU's r > r_max for r >= 0
-        m.dispatch(self.prog, a=float(np.cos(np.deg2rad(p.max_angle_deg))), b=r_max,
-                   intr=self.intr)
+        m.pointwise("pw_dropout", (float(np.cos(np.deg2rad(p.max_angle_deg))), r_max))
 
 
 class QuantisationPass(GLPass[DisparityQuantisation], spec=DisparityQuantisation):
-    def __init__(self, spec: DisparityQuantisation, model: GLSensorModel, index: int):
-        super().__init__(spec, model, index)
-        self.prog = model.program("sensor_pixel.comp", EFFECT="QUANTISE")
-
     def run(self) -> None:
         self.model.to_disparity()
-        self.model.dispatch(self.prog, a=self.spec.step_px)
+        self.model.pointwise("pw_quantise", (self.spec.step_px,))
 
 
 class ProjectorShadowPass(GLPass[ProjectorShadow], spec=ProjectorShadow):
     def __init__(self, spec: ProjectorShadow, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
-        if spec.method == "screen_space":
-            self.prog = model.program("sensor_scan.comp")
-        else:
-            self.prog = model.program("sensor_pixel.comp", EFFECT="EXACT_SHADOW")
+        self.scan = model.program("sensor_scan.comp")
 
     def run(self) -> None:
         m = self.model
         if self.spec.method == "screen_space":
             m.to_disparity()
-            m.dispatch(self.prog, rows=True, scale=1.0, right=m.cfg.baseline_m > 0,
+            m.dispatch(self.scan, rows=True, scale=1.0, right=m.cfg.baseline_m > 0,
                        cause=HOLE_CAUSES.index("shadow"))
-        else:  # the projector's view was uploaded with the frame (texture unit 3)
+        else:  # the projector's view was uploaded with the frame
             m.to_depth()
-            m.dispatch(self.prog, a=self.spec.tolerance, proj_tex=3)
+            m.pointwise("pw_exact_shadow", (self.spec.tolerance,))
 
 
 class RegistrationPass(GLPass[Registration], spec=Registration):
     def __init__(self, spec: Registration, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
         self.scan = model.program("sensor_scan.comp")
-        self.band = model.program("sensor_pixel.comp", EFFECT="BAND")
 
     def run(self) -> None:
         p, m = self.spec, self.model
@@ -389,7 +408,7 @@ class RegistrationPass(GLPass[Registration], spec=Registration):
             m.dispatch(self.scan, rows=True, scale=abs(p.ir_offset_m) / m.cfg.baseline_m,
                        right=p.ir_offset_m > 0, cause=HOLE_CAUSES.index("registration"))
         if p.left_px or p.right_px or p.top_px or p.bottom_px:
-            m.dispatch(self.band, band=(p.left_px, p.right_px, p.top_px, p.bottom_px))
+            m.pointwise("pw_band", (), (p.left_px, p.right_px, p.top_px, p.bottom_px))
 
 
 class LensDistortionPass(GLPass[LensDistortion], spec=LensDistortion):
@@ -416,7 +435,8 @@ class LateralNoisePass(GLPass[LateralNoise], spec=LateralNoise):
     def run(self) -> None:
         m = self.model
         m.to_depth()
-        m.dispatch(self.prog, sigma_px=self.spec.sigma_px, nguyen=self.spec.model == "nguyen")
+        m.dispatch(self.prog, sigma_px=self.spec.sigma_px, nguyen=self.spec.model == "nguyen",
+                   stream=self.index)
         m.swap(*_CHANNELS)
 
 

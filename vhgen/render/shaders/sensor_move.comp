@@ -17,6 +17,7 @@ layout(std430, binding = 7) buffer Inc2 { float inc2[]; };
 
 layout(std430, binding = 8) buffer Source { uint source[]; };
 
+uniform uint stream;
 uniform float sigma_px;
 uniform bool nguyen;  // sigma grows at grazing angles (incidence at the pixel)
 
@@ -30,8 +31,8 @@ void main() {
         float th = min(acos(clamp(inc[p], 0.0, 1.0)), 1.4835298641951802);
         s = sigma_px / 0.8 * (0.8 + 0.035 * th / (1.5707963267948966 - th));
     }
-    int x = clamp(int(floor(float(q.x) + s * draw_normal(p, 0u) + 0.5)), 0, size.x - 1);
-    int y = clamp(int(floor(float(q.y) + s * draw_normal(p, 2u) + 0.5)), 0, size.y - 1);
+    int x = clamp(int(floor(float(q.x) + s * draw_normal(stream, p, 0u) + 0.5)), 0, size.x - 1);
+    int y = clamp(int(floor(float(q.y) + s * draw_normal(stream, p, 2u) + 0.5)), 0, size.y - 1);
     uint src = uint(y * size.x + x);
 #else
     uint src = source[p];
