@@ -3,7 +3,7 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
 
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
-        [--backend egl|osmesa] [--repeat 1] [--no-warmup]
+        [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -147,6 +147,8 @@ def load_config(args: argparse.Namespace) -> JobConfig:
                                          for m in args.motions))
     if args.sensor:
         cfg = replace(cfg, sensor=SensorConfig.load(args.sensor))
+    if args.sensor_backend:  # the effects on the CPU (numba) or as GL compute passes
+        cfg = replace(cfg, sensor=cfg.sensor.with_backend(args.sensor_backend))
     if args.frames_per_shard:
         cfg = replace(cfg, frames_per_shard=args.frames_per_shard)
     return cfg
@@ -188,6 +190,8 @@ def main() -> None:
     ap.add_argument("--motions", nargs="+", help="BVH files or folders instead of the "
                     "config's motions (e.g. ../shared/mocap/cmu)")
     ap.add_argument("--sensor", help="a sensor config instead of the scene's (e.g. ideal)")
+    ap.add_argument("--sensor-backend", choices=["cpu", "gl"], default=None,
+                    help="run the sensor's effects on the CPU or as GL passes (sensor.backend)")
     ap.add_argument("--backend", choices=["egl", "osmesa"], default=None)
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs of every worker count, interleaved")
@@ -197,8 +201,8 @@ def main() -> None:
     cfg = load_config(args)
     sampler_probe = shutil.which(SMI[0]) is not None
     print(f"vhgen whole job: config {cfg.name}, {args.frames} frames in shards of "
-          f"{cfg.frames_per_shard}, sensor {cfg.sensor.name}, backend {cfg.backend}, local "
-          f"executor, {os.cpu_count()} CPUs, GPU {gpu_names()}")
+          f"{cfg.frames_per_shard}, sensor {cfg.sensor.name} ({cfg.sensor.backend}), backend "
+          f"{cfg.backend}, local executor, {os.cpu_count()} CPUs, GPU {gpu_names()}")
     if not args.no_warmup:
         run_one(cfg, min(args.frames, cfg.frames_per_shard), 1, None)
     rows = []

@@ -359,3 +359,36 @@ def test_realism_statistics_agree_on_a_rendered_person(egl_ctx, asset_dir):
         a, b = res[key]["real"], res[key]["sim"]  # real = CPU, sim = GL
         gap = abs(b - a) / abs(a) if key in RELATIVE else abs(b - a)
         assert gap <= tol, (key, a, b)
+
+
+@pytest.mark.gl
+def test_gl_sensor_over_a_real_background(egl_ctx):
+    """vhgen.sensor.composite with the GL sensor: both passes draw the same key from the
+    copied generator, so real pixels out of the people's reach keep their bytes."""
+    from vhgen.render.sensor_gl import GLSensorModel
+    from vhgen.sensor.composite import reach_px, real_depth_m, simulate_over_real
+
+    cfg = SensorConfig.load("openni_525")
+    g = GLSensorModel(egl_ctx, cfg)
+    try:
+        h, w = cfg.intrinsics.height, cfg.intrinsics.width
+        inc = np.ones((h, w), np.float32)
+        real = g.simulate(np.full((h, w), 3.0), np.random.default_rng(99),
+                          incidence=inc).depth_mm
+        real_id, box_id = 5 << 16, 7 | 1 << 8 | 4 << 16
+        depth = real_depth_m(real)
+        ids = np.full((h, w), real_id, np.uint32)
+        box = (slice(180, 330), slice(250, 330))
+        depth[box] = 1.5
+        ids[box] = box_id
+        out = simulate_over_real(g, depth, np.random.default_rng(1), real_mm=real,
+                                 labels=ids, real_label=real_id, incidence=inc)
+    finally:
+        g.release()
+    rows, cols = reach_px(g, 1.5)
+    far = np.ones((h, w), bool)
+    far[180 - rows:330 + rows, 250 - cols:330 + cols] = False
+    assert (out.depth_mm[far] == real[far]).all()
+    assert (out.labels[far] == real_id).all()
+    assert out.valid[190:320, 260:320].mean() > 0.95
+    assert sum(out.holes.values()) == int((~out.valid).sum())
