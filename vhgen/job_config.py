@@ -24,7 +24,7 @@ from vhgen.errors import ConfigError
 from vhgen.mocap.clips import BUILTIN_MOTION
 from vhgen.scene.geometry import MAX_SCENE_CLASSES
 from vhgen.scene.scene_config import SceneConfig, parse_scene
-from vhgen.sensor.sensor_config import SensorConfig
+from vhgen.sensor.sensor_config import SensorConfig, sensor_section
 from vhgen.store.zarr_store import ARRAYS, DEFAULT_ARRAYS, REQUIRED_ARRAYS
 from vhgen.yamlio import check_keys, find_config, load_yaml
 from vhgen.yamlio import number as _num
@@ -183,13 +183,7 @@ class JobConfig:
         # named configs come from the package, YAML paths are relative to this file;
         # checked here, so a typo fails before any work starts
         refs: dict[str, str] = {}
-        # sensor: a preset name or file, or {preset: ..., backend: cpu | gl}
-        sensor_ref = d.get("sensor", "kinect_v1_full")
-        sensor_backend: object = None
-        if isinstance(sensor_ref, dict):
-            check_keys(sensor_ref, {"preset", "backend"}, {"preset"}, path, "sensor.")
-            sensor_backend = sensor_ref.get("backend")
-            sensor_ref = sensor_ref["preset"]
+        sensor_ref, sensor_backend = sensor_section(d.get("sensor", "kinect_v1_full"), path)
         for key, kind, default in (("sensor", "sensors", "kinect_v1_full"),
                                    ("labels", "labels", "shotton31"),
                                    ("retarget", "retarget", "auto")):

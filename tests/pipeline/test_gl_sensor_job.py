@@ -34,9 +34,9 @@ def test_gl_sensor_job_writes_a_store_close_to_the_cpu_one(tmp_path):
     import pyarrow.parquet as pq
     import zarr
 
-    from vhgen.bench.realism import store_stats
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
+    from vhgen.quality.realism_bench import store_stats
     from vhgen.realism.compare import compare
 
     stores = {}

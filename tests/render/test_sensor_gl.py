@@ -336,8 +336,8 @@ def egl_ctx():
 
 @pytest.mark.gl
 def test_realism_statistics_agree_on_a_rendered_person(egl_ctx, asset_dir):
-    from vhgen.bench.scenes import human_frame
     from vhgen.mocap.clips import builtin_motion_path
+    from vhgen.quality.fidelity_scenes import human_frame
     from vhgen.realism.compare import STATISTICS, compare
     from vhgen.realism.stats import frame_stats
 

@@ -114,6 +114,20 @@ def check_backend(effects: tuple[EffectSpec, ...], backend: object,
     return backend
 
 
+def sensor_section(value: object, source: str | Path | None) -> tuple[object, object]:
+    """A job's ``sensor:`` -> (the preset: a name or a YAML path, the backend or None).
+
+    ``value`` is a preset (``openni_525``, ``my_sensor.yaml``) or ``{preset: ...,
+    backend: cpu | gl}``; unknown keys are ConfigErrors naming ``sensor.<key>``. The
+    preset is checked and loaded by the caller (a path is relative to the job's file);
+    the backend by :meth:`SensorConfig.with_backend`.
+    """
+    if not isinstance(value, dict):
+        return value, None
+    check_keys(value, {"preset", "backend"}, {"preset"}, source, "sensor.")
+    return value["preset"], value.get("backend")
+
+
 @dataclass(frozen=True, eq=False)
 class SensorConfig:
     """A sensor description; frozen and stateless (see the module docstring)."""

@@ -1,6 +1,6 @@
 #version 430
 // The dot-gated correlation window (disparity domain), after
-// vhgen.sensor.kernels.correlation_window. Steps (STEP defined by the host):
+// vhgen.sensor.sensor_kernels.correlation_window. Steps (STEP defined by the host):
 //   DOTS:    dotval[p] = d where a projector dot lands on valid pixel p (pattern[y,
 //            round(x - d) + pad]), -1 elsewhere; the dots at least HALF px from the border are listed as candidates;
 //            the splat keys are cleared;
