@@ -95,6 +95,20 @@ def test_backend_gl_refuses_effects_without_a_pass_at_load(tmp_path):
             assert SensorConfig.load(p).with_backend("gl").backend == "gl"
 
 
+def test_a_context_without_compute_shaders_is_refused_in_one_line():
+    from vhgen.errors import RenderError
+    from vhgen.render.sensor_gl import GLSensorModel
+
+    class OldContext:
+        version_code = 330
+        info = {"GL_RENDERER": "some GL 3.3 driver"}
+
+    with pytest.raises(RenderError) as e:
+        GLSensorModel(OldContext(), SensorConfig.load("openni_525").with_backend("gl"))
+    assert "4.3 compute shaders" in str(e.value) and "3.3" in str(e.value)
+    assert "use sensor.backend: cpu" in str(e.value) and "\n" not in str(e.value)
+
+
 def test_backend_shows_in_the_description_only_when_gl():
     cpu = SensorConfig.load("openni_525")
     assert "backend" not in cpu.to_dict()  # CPU stores keep their bytes
