@@ -406,3 +406,35 @@ def test_gl_sensor_over_a_real_background(egl_ctx):
     assert (out.labels[far] == real_id).all()
     assert out.valid[190:320, 260:320].mean() > 0.95
     assert sum(out.holes.values()) == int((~out.valid).sum())
+
+
+@pytest.mark.gl
+def test_reading_the_render_target_equals_the_uploaded_arrays(gl_ctx, body, tmp_path):
+    """simulate_target (the frame read where the renderer drew it, no upload) gives the
+    very bytes simulate gives on the read-back view, with the packed ids moved alike."""
+    from vhgen.body.skinning import bone_matrices
+    from vhgen.camera import look_at
+    from vhgen.render.renderer import DepthLabelRenderer, Draw
+    from vhgen.render.sensor_gl import GLSensorModel
+
+    cfg = SensorConfig.load("openni_525")
+    ren = DepthLabelRenderer(gl_ctx, cfg.intrinsics, incidence=True)
+    g = GLSensorModel(gl_ctx, cfg)
+    try:
+        mesh = ren.upload(body.vertices, body.faces, body.joints, body.weights,
+                          body.face_labels, body.num_bones)
+        b = body.num_bones
+        mats = bone_matrices(body.rig, np.broadcast_to(np.eye(3), (b, 3, 3)),
+                             body.rig.heads[0])
+        view = ren.draw([Draw(mesh, look_at([0, 0.9, 2.6], [0, 0.85, 0]) @ mats, 1, 4)])
+        target = g.simulate_target(ren, np.random.default_rng(8))
+        arrays = g.simulate(view.depth, np.random.default_rng(8), labels=view.ids,
+                            incidence=view.incidence)
+        mesh.release()
+    finally:
+        g.release()
+        ren.release()
+    assert target.valid.sum() > 10000
+    for k in ("depth_mm", "valid", "labels", "raw11", "disparity"):
+        np.testing.assert_array_equal(getattr(target, k), getattr(arrays, k), err_msg=k)
+    assert target.labels.dtype == np.uint32 and target.holes == arrays.holes

@@ -34,6 +34,7 @@ from vhgen.store.zarr_store import write_shard
 
 if TYPE_CHECKING:  # the render step is imported lazily (GL); only its types here
     from vhgen.render.renderer import View
+    from vhgen.render.sensor_gl import GLSensorModel
 
 log = logging.getLogger(__name__)
 
@@ -86,10 +87,13 @@ class FrameGenerator:
         self.ctx = context if context is not None else create_context(cfg.backend)
         self.renderer_info = self.ctx.info.get("GL_RENDERER", "?")
         self.sensor: FrameSensor
-        if cfg.sensor.backend == "gl":  # the effects as compute passes on this context
+        # with sensor.backend gl, the effects as compute passes on this context; they read
+        # a frame where it was drawn when nothing was drawn or changed after it
+        self.gl_sensor: GLSensorModel | None = None
+        if cfg.sensor.backend == "gl":
             from vhgen.render.sensor_gl import GLSensorModel
 
-            self.sensor = GLSensorModel(self.ctx, cfg.sensor)
+            self.sensor = self.gl_sensor = GLSensorModel(self.ctx, cfg.sensor)
         else:
             self.sensor = SensorModel(cfg.sensor)
         self.renderer = DepthLabelRenderer(self.ctx, cfg.sensor.intrinsics,
@@ -110,7 +114,10 @@ class FrameGenerator:
                                   else None)
         cam = views.camera
         packed = cam.ids  # the sensor moves this one array with the pixels
-        if desc.background is None:
+        if self.gl_sensor is not None and views.in_target:  # no upload
+            out = self.gl_sensor.simulate_target(self.renderer, desc.noise_rng(),
+                                                 labels_dtype=packed.dtype)
+        elif desc.background is None:
             out = self.sensor.simulate(cam.depth, desc.noise_rng(), labels=packed,
                                        incidence=cam.incidence,
                                        projector_depth=views.projector_depth)

@@ -26,10 +26,14 @@ MAX_RESIDENT_AVATARS = 16  # ~1.1 MB of GPU buffers each
 
 @dataclass(frozen=True, eq=False)
 class SceneViews:
-    """camera: the camera view; projector_depth (H, W) float32 metres or None."""
+    """camera: the camera view; projector_depth (H, W) float32 metres or None;
+    in_target: the renderer's target still holds exactly ``camera`` (no projector view
+    drawn after it, no glass removed from the read-back, no real background composited),
+    so a GL sensor may read the frame there (:meth:`GLSensorModel.simulate_target`)."""
 
     camera: View
     projector_depth: np.ndarray | None
+    in_target: bool = False
 
 
 def merge_static(meshes: tuple[StaticMesh, ...] | list[StaticMesh]
@@ -125,14 +129,17 @@ class SceneRenderer:
             return SceneViews(self._over_background(desc, draws(w2c),
                                                     projector_baseline_m), None)
         cam = self.renderer.draw(draws(w2c))
+        in_target = True
         if desc.no_return:  # window glass: the pixel gets no measurement (nor what is behind)
             glass = np.isin(cam.classes, desc.no_return)
             if glass.any():
                 cam = replace(cam, depth=np.where(glass, np.float32(0), cam.depth))
+                in_target = False
         proj = None
         if projector_baseline_m is not None:
             proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
-        return SceneViews(cam, proj)
+            in_target = False
+        return SceneViews(cam, proj, in_target)
 
     def _over_background(self, desc: FrameDescription, draws: list[Draw],
                          projector_baseline_m: float | None) -> View:

@@ -272,11 +272,7 @@ class GLSensorModel:
             raise ValueError(f"sensor {cfg.name} needs a projector-view depth image")
         if cfg.random and rng is None:
             raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
-        key = (0, 0)
-        if cfg.random:
-            assert rng is not None
-            k = rng.integers(0, 2**32, size=2, dtype=np.uint32)
-            key = (int(k[0]), int(k[1]))
+        key = self._frame_key(rng)
         tex = self.textures
         tex["depth"].write(np.ascontiguousarray(z, dtype="f4").tobytes())
         if labels is not None:
@@ -291,6 +287,42 @@ class GLSensorModel:
                         "want_ids": labels is not None,
                         "inc_component": 0 if incidence is not None else -1})
         return self._read(labels.dtype if labels is not None else None)
+
+    def simulate_target(self, renderer, rng: np.random.Generator | None, *,
+                        labels_dtype=np.uint32) -> SensorOutput:
+        """The effects on the frame that ``renderer`` (a
+        :class:`~vhgen.render.renderer.DepthLabelRenderer` on this context) last drew,
+        read where it lies: its depth [+ incidence] and ids textures, with no upload. Same
+        output as :meth:`simulate` on that view's arrays (``labels`` packed ids of
+        ``labels_dtype``). The caller makes sure the target still holds the camera view
+        (:attr:`vhgen.render.scene_renderer.SceneViews.in_target`); a sensor that needs a
+        projector view takes :meth:`simulate`."""
+        cfg = self.cfg
+        if renderer.ctx is not self.ctx:
+            raise RenderError("simulate_target: the renderer draws on another context")
+        if (renderer.intr.width, renderer.intr.height) != (self.width, self.height):
+            raise ValueError("simulate_target: the renderer's image is not the sensor's")
+        if "incidence" in cfg.needs and not renderer.want_incidence:
+            raise ValueError(f"sensor {cfg.name} needs the incidence: make the renderer "
+                             "with incidence=True")
+        if "projector_depth" in cfg.needs:
+            raise ValueError(f"sensor {cfg.name} needs a projector view: use simulate()")
+        if cfg.random and rng is None:
+            raise ValueError(f"sensor {cfg.name} draws noise: pass the frame's Generator")
+        renderer.color.use(0)
+        renderer.ids_tex.use(1)
+        self._run(self._frame_key(rng),
+                  {"depth_tex": 0, "ids_tex": 1, "inc_tex": 0, "want_ids": True,
+                   "inc_component": 1 if renderer.want_incidence else -1})
+        return self._read(np.dtype(labels_dtype))
+
+    def _frame_key(self, rng: np.random.Generator | None) -> tuple[int, int]:
+        """Two words of the frame's generator (0, 0 for a sensor that draws nothing)."""
+        if not self.cfg.random:
+            return 0, 0
+        assert rng is not None
+        k = rng.integers(0, 2**32, size=2, dtype=np.uint32)
+        return int(k[0]), int(k[1])
 
     def _run(self, key: tuple[int, int], load: dict[str, object]) -> None:
         """Every pass on the frame whose textures are bound; ``load``: the load step's
