@@ -53,7 +53,7 @@ _ROWS = 32  # work group of the row scans
 _CONSTANTS: dict[str, object] = {c.upper(): i for i, c in enumerate(HOLE_CAUSES)}
 _CONSTANTS.update({k: i + 1 for i, k in enumerate((
     "LATERAL", "LENS",
-    "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "ROWS", "MERGE", "COMPRESS", "COUNT", "REMOVE"))})
+    "DOTS", "ARGS", "ACCEPT", "SCATTER", "SPLAT", "ROWS", "MERGE", "COUNT", "REMOVE"))})
 _AXIAL_MODELS = {"disparity": 0, "khoshelham": 1, "nguyen": 2, "barron_malik": 3}
 _CHANNELS = ("val", "flags", "ids", "inc")  # the state, bindings 0-3 (spares 4-7)
 
@@ -454,7 +454,7 @@ class LensDistortionPass(GLPass[LensDistortion], spec=LensDistortion):
 
     def run(self) -> None:
         m = self.model
-        m.source.bind_to_storage_buffer(8)
+        m.source.bind_to_storage_buffer(8)  # (a gather: in either domain)
         m.dispatch(self.prog)
         m.swap(*_CHANNELS)
 
@@ -465,8 +465,8 @@ class LateralNoisePass(GLPass[LateralNoise], spec=LateralNoise):
         self.prog = model.program("sensor_move.comp", EFFECT="LATERAL")
 
     def run(self) -> None:
+        # a gather copies values: it needs no domain (the CPU stage works in depth)
         m = self.model
-        m.to_depth()
         m.dispatch(self.prog, sigma_px=self.spec.sigma_px, nguyen=self.spec.model == "nguyen",
                    stream=self.index)
         m.swap(*_CHANNELS)
@@ -524,7 +524,7 @@ class SpeckleFilterPass(GLPass[SpeckleFilter], spec=SpeckleFilter):
     def __init__(self, spec: SpeckleFilter, model: GLSensorModel, index: int):
         super().__init__(spec, model, index)
         self.progs = {s: model.program("sensor_speckle.comp", STEP=s)
-                      for s in ("ROWS", "MERGE", "COMPRESS", "COUNT", "REMOVE")}
+                      for s in ("ROWS", "MERGE", "COUNT", "REMOVE")}
 
     def run(self) -> None:
         m = self.model
@@ -532,6 +532,6 @@ class SpeckleFilterPass(GLPass[SpeckleFilter], spec=SpeckleFilter):
         m.aux[1].bind_to_storage_buffer(9)
         m.aux[1].clear()
         m.dispatch(self.progs["ROWS"], rows=True)
-        for step in ("MERGE", "COMPRESS", "COUNT"):
+        for step in ("MERGE", "COUNT"):
             m.dispatch(self.progs[step])
         m.dispatch(self.progs["REMOVE"], max_area=self.spec.max_area_px)

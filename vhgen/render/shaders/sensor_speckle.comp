@@ -11,8 +11,7 @@
 //             already joined there): the larger root is pointed at the smaller one
 //             (atomicMin, retried until it holds), so every tree's root is its
 //             component's smallest pixel;
-//   COMPRESS: every label replaced by its root;
-//   COUNT:    area[root] += 1;
+//   COUNT:    every label replaced by its root, and area[root] += 1;
 //   REMOVE:   pixels of small components become holes.
 #if STEP == ROWS
 layout(local_size_x = 32) in;
@@ -79,11 +78,12 @@ void main() {
     if (q.y == 0 || !is_valid(p) || !is_valid(p - w)) return;
     if (q.x > 0 && is_valid(p - 1u) && is_valid(p - 1u - w)) return;
     join(p, p - w);
-#elif STEP == COMPRESS
-    if (label[p] != NONE) label[p] = find_root(p);
 #elif STEP == COUNT
-    uint l = label[p];
-    if (l != NONE) atomicAdd(area[l], 1u);
+    // the trees are final: every pixel finds its root, keeps it and counts itself there
+    if (label[p] == NONE) return;
+    uint r = find_root(p);
+    label[p] = r;
+    atomicAdd(area[r], 1u);
 #elif STEP == REMOVE
     uint l = label[p];
     if (l != NONE && area[l] <= max_area) remove_pixel(p, SPECKLE);
