@@ -354,7 +354,7 @@ def _cmd_bench_fidelity(args: argparse.Namespace) -> int:
 
     res = bench_fidelity(args.out, quick=args.quick, human=not args.no_human,
                          configs=tuple(args.configs or DEFAULT_CONFIGS), backend=args.backend,
-                         motion=args.motion, asset_dir=args.assets)
+                         motion=args.motion, asset_dir=args.assets, gl_sensor=args.gl)
     print(res["table"])
     print(f"wrote {args.out}/fidelity.json, table.txt, fidelity.png")
     return 0
@@ -396,6 +396,8 @@ def _add_bench(sub: _Sub) -> None:
     fi.add_argument("--quick", action="store_true", help="one scene per kind")
     fi.add_argument("--no-human", action="store_true", help="analytic scenes only (no GL)")
     fi.add_argument("--backend", choices=["egl", "osmesa"], default="egl")
+    fi.add_argument("--gl", action="store_true",
+                    help="also run each config with sensor.backend: gl (rows '[gl]')")
     fi.add_argument("--motion", type=A.existing_file(".bvh"),
                     help="BVH for the human scene (default: the demo clip)")
     fi.add_argument("--assets", type=A.existing_path(), help="MPFB2 asset folder")

@@ -31,6 +31,22 @@ def test_bench_fidelity_quick(tmp_path):
     assert res["table"].splitlines()[0].startswith("fidelity against")
 
 
+@pytest.mark.gl
+def test_bench_fidelity_gl_rows_agree_with_the_cpu(tmp_path):
+    from vhgen.quality.fidelity_bench import bench_fidelity
+
+    res = bench_fidelity(tmp_path, quick=True, human=False, backend="osmesa",
+                         configs=("kinect_v1_full", "kinect_v1_reference"), gl_sensor=True)
+    cfgs = json.loads((tmp_path / "fidelity.json").read_text())["configs"]
+    assert "kinect_v1_reference [gl]" not in cfgs  # structured light has no GL pass
+    cpu, gl = cfgs["kinect_v1_full"]["summary"], cfgs["kinect_v1_full [gl]"]["summary"]
+    assert abs(cpu["valid_iou"] - gl["valid_iou"]) < 0.01
+    assert abs(cpu["hole_iou"] - gl["hole_iou"]) < 0.02
+    assert abs(cpu["shadow_width_error_px"] - gl["shadow_width_error_px"]) < 0.5
+    assert abs(cpu["rms_raw"] - gl["rms_raw"]) < 0.1 * cpu["rms_raw"]
+    assert "kinect_v1_full [gl]" in res["table"]
+
+
 def test_analytic_scenes_are_exact():
     intr = SensorConfig.load("ideal").intrinsics
     frames = suite(intr, B, quick=True)

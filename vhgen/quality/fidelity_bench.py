@@ -1,7 +1,8 @@
 """What accuracy costs in time: every sensor config against the structured-light reference
 on a fixed scene suite (`vhgen bench fidelity`).
 
-Per config and scene: ms per frame (CPU, one core), IoU of the valid masks and of the hole
+Per config and scene: ms per frame (CPU, one core; rows ``[gl]``: the GL backend on this
+machine's renderer), IoU of the valid masks and of the hole
 masks against the reference, and on pixels valid in both the raw-unit error
 (1/8 px disparity steps): P(|dk| <= 1) and RMS. Per scene kind: fronto planes give the
 depth noise sigma against the published curves (Nguyen et al. 2012, Khoshelham & Elberink
@@ -65,10 +66,23 @@ def _shadow_and_edge(out, fr: Frame) -> tuple[float, float]:
 
 
 def evaluate(frames: list[Frame], configs=DEFAULT_CONFIGS, reference: str = REFERENCE,
-             seed: int = 0) -> dict:
-    """Run every config and the reference on every frame; return the metrics."""
+             seed: int = 0, gl_context=None) -> dict:
+    """Run every config and the reference on every frame; return the metrics. With a
+    ``gl_context``, every config the GL backend runs also as GL passes on it (entries
+    ``<config> [gl]``)."""
     ref_model = SensorModel(SensorConfig.load(reference))
-    models = {c: SensorModel(SensorConfig.load(c)) for c in configs}
+    models: dict[str, Any] = {c: SensorModel(SensorConfig.load(c)) for c in configs}
+    if gl_context is not None:
+        from vhgen.errors import ConfigError
+        from vhgen.render.sensor_gl import GLSensorModel
+
+        for c in configs:
+            try:
+                cfg = SensorConfig.load(c).with_backend("gl")
+            except ConfigError:
+                continue  # an effect without a GL pass: the CPU row only
+            models[f"{c} [gl]"] = GLSensorModel(gl_context, cfg)
+    configs = tuple(models)
     f_b = ref_model.cfg.intrinsics.fx * ref_model.cfg.baseline_m
     for m in models.values():  # compile numba kernels outside the timings
         m.simulate(frames[0].depth, np.random.default_rng(0), labels=frames[0].labels,
@@ -142,7 +156,7 @@ def _summary(rows: list[dict]) -> dict:
 
 
 def table(results: dict) -> str:
-    head = (f"{'config':26s} {'ms/frame':>9s} {'valid IoU':>9s} {'hole IoU':>9s} "
+    head = (f"{'config':30s} {'ms/frame':>9s} {'valid IoU':>9s} {'hole IoU':>9s} "
             f"{'P|dk|<=1':>9s} {'RMS dk':>7s} {'shadow err':>10s} {'edge off':>8s} "
             f"{'sigma/Ng':>8s} {'rods 2/4/8/15 px':>18s}")
     lines = [f"fidelity against {results['reference']} "
@@ -156,7 +170,7 @@ def table(results: dict) -> str:
         s = r["summary"]
         rods = s["rod_recall"] or {}
         rodtxt = "/".join(f"{rods.get(k, float('nan')):.2f}" for k in ("2", "4", "8", "15"))
-        lines.append(f"{name:26s} {s['ms_per_frame']:9.1f} {f(s['valid_iou'], '9.3f')} "
+        lines.append(f"{name:30s} {s['ms_per_frame']:9.1f} {f(s['valid_iou'], '9.3f')} "
                      f"{f(s['hole_iou'], '9.3f')} {f(s['p_raw_within_1'], '9.3f')} "
                      f"{f(s['rms_raw'], '7.2f')} {f(s['shadow_width_error_px'], '10.1f')} "
                      f"{f(s['edge_offset_px'], '8.1f')} {f(s['sigma_over_nguyen'], '8.2f')} "
@@ -193,19 +207,26 @@ def plot(results: dict, path: Path) -> Path:
 
 def bench_fidelity(out_dir: str | Path, *, quick: bool = False, configs=DEFAULT_CONFIGS,
                    human: bool = True, backend: str = "egl", motion: str | None = None,
-                   asset_dir=None) -> dict:
-    """Build the scene suite, evaluate, and write table.txt, fidelity.json, fidelity.png."""
+                   asset_dir=None, gl_sensor: bool = False) -> dict:
+    """Build the scene suite, evaluate, and write table.txt, fidelity.json, fidelity.png.
+    ``gl_sensor``: every config also with ``sensor.backend: gl`` (rows ``[gl]``; on this
+    machine's GL renderer)."""
     ref_cfg = SensorConfig.load(REFERENCE)
     intr, b = ref_cfg.intrinsics, ref_cfg.baseline_m
     frames = suite(intr, b, quick=quick)
-    if human:
-        from vhgen.render.context import create_context  # GL only for the human scene
+    ctx = None
+    if human or gl_sensor:
+        from vhgen.render.context import create_context  # GL for the human scene, GL rows
 
         ctx = create_context(backend)
-        frames.append(human_frame(ctx, intr, b, resolve_asset_dir(asset_dir),
-                                  motion or builtin_motion_path()))
-        ctx.release()
-    results = evaluate(frames, configs)
+    try:
+        if human:
+            frames.append(human_frame(ctx, intr, b, resolve_asset_dir(asset_dir),
+                                      motion or builtin_motion_path()))
+        results = evaluate(frames, configs, gl_context=ctx if gl_sensor else None)
+    finally:
+        if ctx is not None:
+            ctx.release()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "fidelity.json").write_text(json.dumps(results, indent=1))
