@@ -95,7 +95,7 @@ class GLSensorModel:
     quantisation, the registration border, exact shadows, and the frame's load and the
     output encoding) are queued with :meth:`pointwise` and run fused, one program per run
     of them, when a pass that reads other pixels (:meth:`dispatch`) or the end of the frame
-    needs their result: openni_525 is 5 such programs instead of 14 passes.
+    needs their result: openni_525 runs its 11 per-pixel steps as 5 programs.
 
     ctx : a current moderngl context (see :mod:`vhgen.render.context`).
     Raises :class:`RenderError` (one line naming ``sensor.backend: cpu``) when the context
