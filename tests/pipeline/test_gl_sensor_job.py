@@ -22,7 +22,7 @@ scene:
   room: {{width_m: [4, 6], depth_m: [4.5, 6], height_m: [2.4, 2.8], yaw_deg: [-20, 20]}}
   people: [1, 2]
   props: {{count: [1, 2], kinds: [box, table]}}
-output: {{frames_per_shard: 4}}
+output: {{frames_per_shard: 4, arrays: [depth, labels, instances, classes, raw]}}
 render: {{backend: egl}}
 num_workers: 1
 """
