@@ -156,6 +156,12 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     used = {g for _, _, g in select_frames([store_info(store)], 8, 0)}
     stage_frames = {g for _, _, g in person_stage_frames(f, [store], 16, 0)}
     assert len(stage_frames) == 16 and not used & stage_frames
+    # with another store before it: still none of the forest's frames, matched by store
+    other = rooms_store(tmp_path / "other.zarr", range(500, 504))
+    mixed = person_stage_frames(f, [other, store], 20, 0)
+    assert len(mixed) == 20
+    assert not {fr for p, fr, _ in mixed if p == store} & used
+    assert sum(p == other for p, _, _ in mixed) == 4
 
     parts = tmp_path / "parts.npz"
     code, _, _ = run(capsys, "forest", "train", store, "--out", str(parts), *SMALL,
