@@ -115,7 +115,7 @@ def test_fit_is_seeded_and_nan_rows_are_nobody():
         PersonStage.fit(x[y], y[y], FEATURES)
 
 
-def test_stage_travels_in_the_forest_file(tmp_path):
+def test_stage_travels_in_the_forest_file(tmp_path, capsys):
     from vhgen.forest.trees import first_trees, truncate
 
     x, y = candidates(range(8), vote=0.6)
@@ -130,6 +130,16 @@ def test_stage_travels_in_the_forest_file(tmp_path):
     assert first_trees(back, 1).person_stage is back.person_stage
     f.person_stage = None
     assert Forest.load(f.save(tmp_path / "g.npz")).person_stage is None
+    # a stage of other features (an older vhgen's): a warning, and the vote decides
+    from dataclasses import replace
+
+    from vhgen.forest.commands import load_any_forest
+
+    f.person_stage = replace(stage, features=FEATURES[:-1])
+    path = f.save(tmp_path / "old.npz")
+    capsys.readouterr()
+    assert load_any_forest(str(path)).person_stage is None
+    assert "its person stage reads other candidate features" in capsys.readouterr().err
 
 
 def rooms_store(path, seeds) -> str:

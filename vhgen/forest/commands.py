@@ -31,7 +31,17 @@ def load_any_forest(path: str, fx: float | None = None) -> Any:
     p = Path(path)
     if p.is_dir() or p.suffix == ".txt":
         return load_pcl_forest(p, fx=fx)
-    return Forest.load(p)
+    forest = Forest.load(p)
+    stage = forest.person_stage
+    if stage is not None:
+        from vhgen.forest.segment import FEATURES
+
+        if stage.features != FEATURES:
+            _warn(f"{p}: its person stage reads other candidate features than this "
+                  f"version's ({len(stage.features)} against {len(FEATURES)}); --segment "
+                  "decides by the forest's vote (train the stage again: forest person-stage)")
+            forest.person_stage = None
+    return forest
 
 
 def check_focal(forest: Any, fx: float | None, where: str) -> None:
