@@ -159,8 +159,8 @@ class Segmenter:
             # wall: even where quantisation at a distance cuts them into stripes)
             if _spread(p[inliers] @ _plane_basis(normal).T).min() < self.min_patch_m:
                 continue
-            if self.keep_occluders and _occluding_share(mask, valid, points[..., 2],
-                                                        self.jump_m) > 0.5:
+            if self.keep_occluders and _outline_share(mask, valid, points[..., 2],
+                                                      self.jump_m, unmeasured=False) > 0.5:
                 continue  # it stands in front of what surrounds it: people, not a wall
             # a background plane also takes its points that an earlier, kept plane held
             # (where a row of people's plane meets the floor)
@@ -232,6 +232,8 @@ class Segmenter:
     def table_of(self, comp: np.ndarray, n: int, points: np.ndarray, labels: np.ndarray,
                  keep: np.ndarray) -> dict[str, np.ndarray]:
         """The table of :meth:`cluster_table` for candidates ``comp`` (of :meth:`candidates`)."""
+        from scipy import ndimage
+
         flat = comp.reshape(-1)
         body = (labels > 0) & keep
         size = np.bincount(flat, minlength=n + 1).astype(np.float64)
@@ -245,13 +247,14 @@ class Segmenter:
             same += np.bincount(ca[both & (a == b)], minlength=n + 1)
         parts = np.zeros(n + 1, np.int64)
         extent = np.zeros(n + 1)
-        big = np.flatnonzero((size >= self.min_pixels) & (np.arange(n + 1) > 0))
-        for c in big:
-            m = comp == c
-            counts = np.bincount(labels[m & body])
+        for c, sl in enumerate(ndimage.find_objects(comp), start=1):
+            if sl is None or size[c] < self.min_pixels:
+                continue
+            m = comp[sl] == c
+            counts = np.bincount(labels[sl][m & body[sl]])
             if counts.sum():
                 parts[c] = int((counts[1:] >= 0.05 * counts.sum()).sum())
-            extent[c] = _longest_extent(points[m])
+            extent[c] = _longest_extent(points[sl][m])
         return {"pixels": size, "body": called / np.maximum(size, 1),
                 "coherence": same / np.maximum(pairs, 1), "parts": parts,
                 "extent_m": extent}
@@ -281,6 +284,7 @@ class Segmenter:
                    else (np.array([0.0, -1.0, 0.0]), 0.0))
         basis = _plane_basis(up)
         pixel_m2 = 1.0 / (intr.fx * intr.fy)
+        z_img = points[..., 2]
         for c, sl in enumerate(ndimage.find_objects(comp), start=1):
             if sl is None or table["pixels"][c] < self.min_pixels:
                 continue
@@ -295,16 +299,18 @@ class Segmenter:
             area = float((z * z).sum() * pixel_m2)
             head = h > hi - 0.2
             shoulders = (h > hi - 0.5) & ~head
-            inside = np.zeros(comp.shape, bool)
-            inside[sl] = m
             ys, xs = sl
+            # the outline's pairs lie within one pixel of the candidate's box
+            around = (slice(max(ys.start - 1, 0), ys.stop + 1),
+                      slice(max(xs.start - 1, 0), xs.stop + 1))
             out[c] = (float(np.median(z)), np.log(max(area, 1e-6)), float(on_floor),
                       hi if on_floor else height, lo if on_floor else 0.0, height, width,
                       float(np.percentile(z, 95) - np.percentile(z, 5)),
                       _spread(q[head]).max() if head.sum() >= 3 else 0.0,
                       _spread(q[shoulders]).max() if shoulders.sum() >= 3 else 0.0,
                       area / max(height * width, 1e-6),
-                      _in_front_share(inside, valid, points[..., 2], self.jump_m),
+                      _outline_share(comp[around] == c, valid[around], z_img[around],
+                                     self.jump_m, unmeasured=True),
                       float(ys.start == 0 or xs.start == 0 or ys.stop == h_img
                             or xs.stop == w_img),
                       table["body"][c], table["coherence"][c], float(table["parts"][c]))
@@ -455,36 +461,20 @@ class Segmenter:
         return out
 
 
-def _occluding_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
-                     jump_m: float) -> float:
-    """Of the 4-neighbour pairs across the border of ``mask`` (to valid pixels), the share
-    where the outside is farther by more than a depth step (``jump_m`` at 1 m, times z):
-    high for something standing in front of a room (a row of people), low for a wall or a
-    floor, whose borders are corners or nearer things in front of them."""
-    far = total = 0
-    for a, b, za, zb in ((mask[:, :-1], mask[:, 1:], z[:, :-1], z[:, 1:]),
-                         (mask[:-1], mask[1:], z[:-1], z[1:])):
-        va = valid[:, :-1] if a.shape[1] != mask.shape[1] else valid[:-1]
-        vb = valid[:, 1:] if a.shape[1] != mask.shape[1] else valid[1:]
-        out_b = a & ~b & vb  # inside at a, outside at b
-        out_a = b & ~a & va
-        far += int((out_b & (zb - za > jump_m * za)).sum())
-        far += int((out_a & (za - zb > jump_m * zb)).sum())
-        total += int(out_b.sum() + out_a.sum())
-    return far / total if total else 0.0
-
-
-def _in_front_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray,
-                    jump_m: float) -> float:
+def _outline_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray, jump_m: float,
+                   unmeasured: bool) -> float:
     """Of the 4-neighbour pairs across the border of ``mask``, the share whose outside
-    pixel is farther by more than a depth step (``jump_m`` at 1 m, times z) or has no
-    measurement."""
+    pixel is farther by more than a depth step (``jump_m`` at 1 m, times z): high for
+    something standing in front of a room (a row of people, a person), low for a wall or
+    a floor, whose borders are corners or nearer things in front of them. ``unmeasured``:
+    an outside pixel without a measurement counts as farther; else such pairs do not
+    count at all."""
     far = total = 0
     for a, b, za, zb, va, vb in ((mask[:, :-1], mask[:, 1:], z[:, :-1], z[:, 1:],
                                   valid[:, :-1], valid[:, 1:]),
                                  (mask[:-1], mask[1:], z[:-1], z[1:], valid[:-1], valid[1:])):
-        out_b = a & ~b
-        out_a = b & ~a
+        out_b = a & ~b & (vb | unmeasured)  # inside at a, outside at b
+        out_a = b & ~a & (va | unmeasured)
         far += int((out_b & (~vb | (zb - za > jump_m * za))).sum())
         far += int((out_a & (~va | (za - zb > jump_m * zb))).sum())
         total += int(out_b.sum() + out_a.sum())
