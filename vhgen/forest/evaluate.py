@@ -91,8 +91,12 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
         t0 = time.perf_counter()
         pred = pred_fn.predict(depth)
         seconds += time.perf_counter() - t0
-        part_pred = (part_fn.predict(np.where(labels > 0, depth, 0)) if on_people
-                     else pred if parts is None else part_fn.predict(depth))
+        if on_people:  # the true people alone
+            part_pred = part_fn.predict(np.where(labels > 0, depth, 0))
+        elif parts is not None:
+            part_pred = part_fn.predict(depth)
+        else:
+            part_pred = pred
         conf += confusion(part_pred, labels, depth, c)
         inst, has = read_instances(part, labels)
         for i, (path, f, _) in enumerate(part):
