@@ -11,7 +11,15 @@ RSS per actor at each checkpoint, the growth from the first checkpoint to the la
 growth over the second half of the run (middle checkpoint to last). RSS steps up during
 warm-up (kernels compiled, allocator pools filled, the first larger avatar body, which
 the allocator keeps as its high-water mark) and must then stay flat. Goal: below 5% per
-actor.
+actor. The driver's own RSS is sampled beside them.
+
+    .venv/bin/python benchmarks/bench_memory.py --merge-only --frames 100000 --every 10000
+
+measures the one part of the driver that grows with a job, the manifest merge, without
+rendering: it makes a 32-frame ``cluttered_room`` store, writes its manifest rows again
+as the parts of a ``--frames`` job (frames and shards renumbered), then hands them to
+``ManifestMerger`` as the driver does when shards finish, sampling the process's RSS.
+Goal: flat within 100 MB however many frames.
 """
 
 from __future__ import annotations
@@ -74,6 +82,61 @@ def actor_rss_mb(root: int) -> dict[int, float]:
     return out
 
 
+def rss_mb(pid: int) -> float:
+    """RSS of process ``pid`` in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def merge_only(args: argparse.Namespace) -> None:
+    """The driver's manifest merge of a ``--frames`` job alone (see the module docstring)."""
+    import pyarrow as pa
+
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.driver import run_job
+    from vhgen.store.manifest import ManifestMerger, read_manifest, write_parquet
+
+    per = args.frames_per_shard
+    with tempfile.TemporaryDirectory() as tmp:
+        seed_store = Path(tmp) / "rows.zarr"
+        cfg = JobConfig.load(REPO / "configs" / "scenes" / "cluttered_room.yaml")
+        run_job(cfg, seed_store, max_frames=per, overwrite=True, progress=False)
+        rows = read_manifest(seed_store)
+        out = Path(tmp) / "merge.zarr"
+        (out / "manifest").mkdir(parents=True)
+        shards = -(-args.frames // per)
+        t0 = time.perf_counter()
+        for k in range(shards):  # the parts a job of --frames frames leaves
+            n = min(per, args.frames - k * per)
+            part = rows.slice(0, n)
+            part = part.set_column(part.column_names.index("frame"), "frame",
+                                   pa.array(range(k * per, k * per + n), pa.int64()))
+            part = part.set_column(part.column_names.index("shard"), "shard",
+                                   pa.array([k] * n, pa.int32()))
+            write_parquet(part, out / "manifest" / f"part-{k:06d}.parquet")
+        print(f"{args.frames} frames of cluttered_room manifest rows in {shards} parts "
+              f"({time.perf_counter() - t0:.0f} s to write)")
+        print(f"{'frames':>8} {'driver MB':>10}")
+        base = rss_mb(os.getpid())
+        print(f"{0:>8} {base:>10.1f}")
+        series = []
+        merger = ManifestMerger(out, list(range(shards)), range(shards))
+        t0 = time.perf_counter()
+        for k in range(shards):
+            merger.add(k)
+            if (k + 1) * per % args.every < per or k == shards - 1:
+                series.append(rss_mb(os.getpid()))
+                print(f"{min((k + 1) * per, args.frames):>8} {series[-1]:>10.1f}")
+        merger.finish(args.frames)
+        size = (out / "manifest.parquet").stat().st_size
+        print(f"merged in {time.perf_counter() - t0:.1f} s; manifest.parquet "
+              f"{size / 1e6:.1f} MB ({size / args.frames:.0f} bytes a frame); RSS growth from "
+              f"the first checkpoint to the last {series[-1] - series[0]:+.1f} MB, peak "
+              f"{max(series):.1f} MB")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=20000, help="frames to generate (about)")
@@ -88,7 +151,11 @@ def main() -> None:
     ap.add_argument("--executor", choices=["local", "ray"], default="local",
                     help="worker processes of this machine or Ray actors")
     ap.add_argument("--out", help="store path (default: a temporary folder, removed)")
+    ap.add_argument("--merge-only", action="store_true",
+                    help="only the driver's manifest merge of a --frames job (no rendering)")
     args = ap.parse_args()
+    if args.merge_only:
+        return merge_only(args)
 
     from vhgen.job_config import JobConfig
     from vhgen.pipeline.driver import run_job
@@ -130,7 +197,8 @@ def main() -> None:
                 n = len(list(parts.glob("part-*.parquet"))) * args.frames_per_shard \
                     if parts.is_dir() else 0
                 if n >= next_mark:
-                    samples.append((n, time.perf_counter() - t0, actor_rss_mb(os.getpid())))
+                    samples.append((n, time.perf_counter() - t0,
+                                    {0: rss_mb(os.getpid()), **actor_rss_mb(os.getpid())}))
                     next_mark = (n // args.every + 1) * args.every
                 done.wait(0.5)
 
@@ -143,7 +211,7 @@ def main() -> None:
             th.join()
 
     pids = sorted({p for _, _, r in samples for p in r})
-    names = {p: f"actor {i}" for i, p in enumerate(pids)}
+    names = {0: "driver", **{p: f"actor {i}" for i, p in enumerate(q for q in pids if q)}}
     print(f"\n{'frames':>7} {'s':>7}  " + "  ".join(f"{names[p] + ' MB':>12}" for p in pids))
     for n, t, rss in samples:
         print(f"{n:>7} {t:>7.0f}  " + "  ".join(

@@ -12,6 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from tests.conftest import unmerge_manifest, write_synthetic_store
+from vhgen.errors import StoreError
 from vhgen.store.manifest import ManifestMerger, read_manifest, write_parquet
 from vhgen.store.zarr_store import completed_shards
 
@@ -86,3 +87,73 @@ def test_written_with_zstd_and_dictionaries_for_strings_only(store):
     strings = {p for p, c in cols.items() if c.physical_type == "BYTE_ARRAY"}
     assert dict_cols and dict_cols <= strings
     assert cols["frame"].is_stats_set
+
+
+def test_rows_stream_in_frame_order_as_shards_finish(store, synthetic, monkeypatch):
+    """The driver's merge: a shard's rows are written once every earlier shard is, in row
+    groups of MANIFEST_ROW_GROUP frames (the merge holds no more), and the file is the
+    same rows as a merge at the end."""
+    import vhgen.store.manifest as manifest
+
+    monkeypatch.setattr(manifest, "MANIFEST_ROW_GROUP", 4)
+    unmerge_manifest(store)
+    merger = ManifestMerger(store, sorted(SHARDS), SHARDS)
+    merger.add(1)  # shard 0 still rendering: nothing can be written
+    assert merger.writer is None and merger.count == 0
+    merger.add(0)  # shards 0 and 1 now: two row groups
+    assert merger.pos == 2 and merger.count == 0
+    for shard in (5, 3, 4, 2):
+        merger.add(shard)
+        assert merger.count < 4  # at most one row group held
+    merger.finish(FRAMES)
+    meta = pq.ParquetFile(store / "manifest.parquet").metadata
+    assert meta.num_row_groups == 6  # one per shard here (4 frames each, 2 in the last)
+    assert read_manifest(store).equals(read_manifest(synthetic).sort_by("frame"))
+    assert not (store / "manifest").exists() and not (store / "manifest.parquet.tmp").exists()
+
+
+def test_resume_takes_rows_from_an_earlier_manifest_row_group_by_row_group(
+        store, synthetic, monkeypatch):
+    """A resumed run: the earlier manifest (several row groups) gives the rows of the
+    shards not redone, a redone shard's part replaces its rows."""
+    import vhgen.store.manifest as manifest
+
+    monkeypatch.setattr(manifest, "MANIFEST_ROW_GROUP", 8)
+    ManifestMerger(store).finish(FRAMES)
+    table = read_manifest(store)
+    assert pq.ParquetFile(store / "manifest.parquet").metadata.num_row_groups == 3
+    mine = pc.equal(table.column("shard"), 3)
+    changed = table.filter(mine).set_column(
+        table.column_names.index("avatar_id"), "avatar_id",
+        pa.array([7] * PER_SHARD, pa.int32()))
+    (store / "manifest").mkdir()
+    write_parquet(changed, store / "manifest" / "part-000003.parquet")
+    merger = ManifestMerger(store, sorted(SHARDS), {3})
+    merger.add(3)
+    merger.finish(FRAMES)
+    got = read_manifest(store)
+    expect = pa.concat_tables([table.filter(pc.less(table.column("shard"), 3)), changed,
+                               table.filter(pc.greater(table.column("shard"), 3))])
+    assert got.equals(expect)
+
+
+def test_a_missing_shard_fails_the_merge_and_keeps_the_parts(store):
+    unmerge_manifest(store)
+    (store / "manifest" / "part-000004.parquet").unlink()
+    with pytest.raises(StoreError, match=r"manifest has 18 rows for 22 frames \(0 duplicated, "
+                       r"4 missing\)"):
+        ManifestMerger(store, sorted(SHARDS), SHARDS - {4}).finish(FRAMES)
+    assert not (store / "manifest.parquet").exists()
+    assert not (store / "manifest.parquet.tmp").exists()
+    assert len(list((store / "manifest").glob("part-*.parquet"))) == 5
+
+
+def test_an_unreadable_part_is_named_and_the_job_goes_on(store):
+    unmerge_manifest(store)
+    (store / "manifest" / "part-000002.parquet").write_bytes(b"PAR1 not parquet")
+    merger = ManifestMerger(store, sorted(SHARDS), SHARDS)
+    for shard in sorted(SHARDS):
+        merger.add(shard)  # no exception while the job runs
+    with pytest.raises(StoreError, match=r"1 part\(s\) unreadable: part-000002.parquet"):
+        merger.finish(FRAMES)
+    assert len(list((store / "manifest").glob("part-*.parquet"))) == 6

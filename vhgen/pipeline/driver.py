@@ -186,7 +186,8 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         log.info("GL renderers: %s", renderers)
         t_render = time.perf_counter()
         bar = Progress(sum(t.stop - t.start for t in todo), enabled=progress)
-        merger = ManifestMerger(out)
+        merger = ManifestMerger(out, [t.shard for t in plan.tasks],
+                                 [t.shard for t in todo])
         results, attempts, first_frame = dispatch(pool, todo, out, bar, merger)
         bar.close()
         t_render = time.perf_counter() - t_render

@@ -21,6 +21,7 @@ Every reader of vhgen goes through :func:`read_manifest_table`, which returns fo
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -103,23 +104,31 @@ def _footprint_as_list(people):
     return pa.chunked_array(chunks) if chunks else people
 
 
-def read_manifest_table(path: str | Path, columns: list[str] | None = None):
-    """The manifest at ``path`` (a ``manifest.parquet`` or a part) as an Arrow table in
-    form 2, whatever form it was written in and whichever pyarrow reads it."""
+def read_manifest_table(path: Any, columns: list[str] | None = None,
+                        row_group: int | None = None):
+    """The manifest at ``path`` (a ``manifest.parquet`` or a part, or an open
+    ``pyarrow.parquet.ParquetFile``; only its ``row_group`` when given) as an Arrow table
+    in form 2, whatever form it was written in and whichever pyarrow reads it."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    pf = path if isinstance(path, pq.ParquetFile) else None
+
+    def read(cols: list[str] | None) -> Any:
+        if row_group is not None:
+            return (pf or pq.ParquetFile(path)).read_row_group(row_group, columns=cols)
+        return pf.read(columns=cols) if pf is not None else pq.read_table(path, columns=cols)
+
     try:
-        table = pq.read_table(path, columns=columns)
+        table = read(columns)
     except pa.ArrowInvalid as e:
         if "Expected all lists to be of size" not in str(e):
             raise
         # form 1 with null footprints, read by pyarrow < 26: every leaf but the footprint
-        pf = pq.ParquetFile(path)
+        pf = pf or pq.ParquetFile(path)
         leaves = [pf.schema.column(i).path for i in range(pf.metadata.num_columns)]
-        keep = [p for p in leaves if not p.startswith("people.list.element.footprint")
-                and (columns is None or p.split(".")[0] in columns)]
-        table = pf.read(columns=keep)
+        table = read([p for p in leaves if not p.startswith("people.list.element.footprint")
+                      and (columns is None or p.split(".")[0] in columns)])
     if "people" in table.column_names:
         people = table.column("people")
         person = people.type.value_type
@@ -140,21 +149,27 @@ def manifest_schema(num_joints: int):
 PARQUET_ZSTD_LEVEL = 9
 
 
-def write_parquet(table: Any, path: Path) -> None:
-    """Write ``table`` to ``path`` atomically (temp file + rename) as every manifest file
-    is written: zstd level 9; dictionary encoding for the string columns only (on the
-    float columns it made the file larger); statistics for the top-level columns only
-    (no reader filters on a joint coordinate). 2.7 kB a cluttered_room frame against 3.5
-    kB with pyarrow's defaults (docs/performance.md); read by any Parquet reader."""
+def _parquet_options(schema: Any) -> dict:
+    """How every manifest file is written: zstd level 9; dictionary encoding for the
+    string columns only (on the float columns it made the file larger); statistics for
+    the top-level columns only (no reader filters on a joint coordinate). 2.7 kB a
+    cluttered_room frame against 3.5 kB with pyarrow's defaults (docs/performance.md);
+    read by any Parquet reader."""
     import pyarrow as pa
+
+    flat = [f.name for f in schema if not pa.types.is_nested(f.type)]
+    strings = [p for f in schema for p, t in _leaves(f.name, f.type) if pa.types.is_string(t)]
+    return {"compression": "zstd", "compression_level": PARQUET_ZSTD_LEVEL,
+            "use_dictionary": strings, "write_statistics": flat}
+
+
+def write_parquet(table: Any, path: Path) -> None:
+    """Write ``table`` to ``path`` atomically (temp file + rename), as
+    :func:`_parquet_options` says."""
     import pyarrow.parquet as pq
 
-    flat = [f.name for f in table.schema if not pa.types.is_nested(f.type)]
-    strings = [p for f in table.schema for p, t in _leaves(f.name, f.type)
-               if pa.types.is_string(t)]
     tmp = path.with_suffix(".tmp")
-    pq.write_table(table, tmp, compression="zstd", compression_level=PARQUET_ZSTD_LEVEL,
-                   use_dictionary=strings, write_statistics=flat)
+    pq.write_table(table, tmp, **_parquet_options(table.schema))
     os.replace(tmp, path)
 
 
@@ -185,75 +200,215 @@ def write_part(store: str | Path, shard: int, records: list[FrameRecord],
     return out
 
 
-class ManifestMerger:
-    """Collects the manifest parts of a store as their shards finish, then writes
-    ``manifest.parquet`` (checking every frame appears once). Reading each part when its
-    shard is done spreads the reads over the run instead of the end of the job."""
+# the rows of manifest.parquet per row group: the merge holds at most this many rows (and
+# one part) in memory, whatever the job's size (about 4 kB a cluttered frame in Arrow)
+MANIFEST_ROW_GROUP = 4096
 
-    def __init__(self, store: str | Path):
+
+class _OldRows:
+    """The rows of an earlier run's ``manifest.parquet``, taken shard by shard in frame
+    order, one row group in memory at a time (None when there is none, or it is
+    unreadable: its shards then have no rows and are reported missing)."""
+
+    def __init__(self, path: Path):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self.groups: list[int] = []
+        self.buf: Any = None
+        try:
+            self.file = pq.ParquetFile(path) if path.is_file() else None
+            if self.file is not None:
+                self.groups = list(range(self.file.metadata.num_row_groups))
+        except (OSError, pa.ArrowException):
+            self.file = None
+
+    def close(self) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+
+    def take(self, shard: int) -> Any:
+        """The rows of ``shard`` (a table, maybe empty), dropping those of earlier shards."""
+        import pyarrow as pa
+
+        pieces = []
+        while True:
+            if self.buf is None or self.buf.num_rows == 0:
+                if self.file is None or not self.groups:
+                    break
+                try:
+                    self.buf = read_manifest_table(self.file, row_group=self.groups.pop(0))
+                except (OSError, pa.ArrowException):
+                    self.file, self.buf = None, None  # damaged: the rest is missing
+                    break
+            shards = self.buf.column("shard").to_numpy()
+            lo, hi = np.searchsorted(shards, [shard, shard + 1])
+            pieces.append(self.buf.slice(lo, hi - lo))
+            self.buf = self.buf.slice(hi)
+            if self.buf.num_rows:
+                break  # the next row is of a later shard
+        pieces = [p for p in pieces if p.num_rows]
+        return pa.concat_tables(pieces) if pieces else None
+
+
+class ManifestMerger:
+    """Streams the manifest parts of a store into ``manifest.parquet`` in frame order.
+
+    The driver hands each shard to :meth:`add` as it finishes; the rows of every shard up
+    to the first one still rendering are appended then, a row group of
+    :data:`MANIFEST_ROW_GROUP` frames at a time, to a temporary file that :meth:`finish`
+    completes, checks (every frame once) and renames into place before removing the
+    parts: the merged file is the one copy of the manifest (a run stopped between the two
+    leaves both, which resumes and inspects as well). The merge holds at most one row
+    group and one part, so the driver's memory does not grow with the job. A shard not
+    rendered in this run takes its part from an earlier run, else its rows from the earlier
+    run's ``manifest.parquet`` (a redone shard's part replaces them).
+
+    ``shards``: every shard of the job in frame order, ``todo`` those rendered in this run;
+    without them (a merge of what is on disk) everything is merged by :meth:`finish`."""
+
+    def __init__(self, store: str | Path, shards: Sequence[int] | None = None,
+                 todo: Iterable[int] = ()):
         self.store = Path(store)
-        self.tables: dict[int, object] = {}
+        self.shards = list(shards) if shards is not None else None
+        self.waiting = set(todo)  # shards of this run not finished yet
+        self.pos = 0  # index in self.shards of the next shard to write
+        self.old = _OldRows(self.store / MANIFEST_FILE)
+        self.tmp = self.store / (MANIFEST_FILE + ".tmp")
+        self.writer: Any = None
+        self.rows: list[Any] = []
+        self.count = 0  # rows buffered
+        self.last = -1  # the last frame written
+        self.seen = np.zeros(0, np.int32)  # rows per frame
+        self.bad: list[str] = []
+        self.error: StoreError | None = None
 
     def add(self, shard: int) -> None:
-        """Read shard ``shard``'s part (again, if it was redone). A part that cannot be
-        read now is read (and its error reported) by :meth:`finish`."""
+        """Shard ``shard`` is written: append the rows that are now in frame order. A part
+        that cannot be read, or rows that cannot be merged, are reported by
+        :meth:`finish` (the job goes on)."""
+        self.waiting.discard(shard)
+        if self.error is None:
+            try:
+                self._advance()
+            except StoreError as e:
+                self.error = e
+
+    def _advance(self) -> None:
+        while self.shards is not None and self.pos < len(self.shards):
+            shard = self.shards[self.pos]
+            if shard in self.waiting:
+                break
+            self._write_shard(shard)
+            self.pos += 1
+
+    def _write_shard(self, shard: int) -> None:
         import pyarrow as pa
 
+        old = self.old.take(shard)  # consumed in any case: the rows stay in step
         path = self.store / MANIFEST_PARTS / f"part-{shard:06d}.parquet"
+        table = old
+        if path.is_file():
+            try:
+                table = read_manifest_table(path)
+            except (OSError, pa.ArrowException) as e:
+                self.bad.append(f"{path.name} ({type(e).__name__}: {_first_line(e)})")
+                return
+        if table is None or table.num_rows == 0:
+            return  # no rows: finish() counts its frames missing
+        table = table.sort_by("frame")
+        frames = table.column("frame").to_numpy()
+        if frames[0] <= self.last:  # shards out of frame order: a damaged store
+            raise StoreError(f"{self.store}: cannot merge the manifest: shard {shard}'s "
+                             f"frames start at {frames[0]}, before frame {self.last} of an "
+                             "earlier shard")
+        self.last = int(frames[-1])
+        if self.last >= len(self.seen):
+            self.seen = np.concatenate([self.seen, np.zeros(
+                max(self.last + 1 - len(self.seen), len(self.seen)), np.int32)])
+        np.add.at(self.seen, frames, 1)
+        self.rows.append(table)
+        self.count += table.num_rows
+        if self.count >= MANIFEST_ROW_GROUP:
+            self._flush()
+
+    def _flush(self) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        if not self.rows:
+            return
+        table = pa.concat_tables(self.rows)
+        self.rows, self.count = [], 0
+        if self.writer is None:
+            self.writer = pq.ParquetWriter(self.tmp, table.schema, **_parquet_options(
+                table.schema))
         try:
-            self.tables[shard] = read_manifest_table(path)
-        except (OSError, pa.ArrowInvalid):  # unreadable or truncated: finish() says so
-            self.tables.pop(shard, None)
+            self.writer.write_table(table, row_group_size=len(table))
+        except ValueError as e:  # another schema (a part of another vhgen version)
+            raise StoreError(f"{self.store}: cannot merge the manifest: {_first_line(e)}; "
+                             "the store's parts were written by different versions") from None
 
     def finish(self, num_frames: int) -> Path:
-        """Read the parts not added yet (shards of an earlier run), concatenate them with
-        the rows of the other shards in an earlier run's ``manifest.parquet``, check, write
-        ``manifest.parquet`` atomically, then remove the parts: the merged file is the one
-        copy of the manifest (a run stopped between the two leaves both, which resumes
-        and inspects as well)."""
-        import pyarrow as pa
-        import pyarrow.compute as pc
-
-        bad = []
-        for p in sorted((self.store / MANIFEST_PARTS).glob("part-*.parquet")):
-            shard = int(p.stem.split("-")[1])
-            if shard not in self.tables:
-                try:
-                    self.tables[shard] = read_manifest_table(p)
-                except (OSError, pa.ArrowException) as e:
-                    bad.append(f"{p.name} ({type(e).__name__}: {_first_line(e)})")
-        if bad:
-            raise StoreError(f"{self.store}: cannot merge the manifest: {len(bad)} part(s) "
-                             f"unreadable: {'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''}"
-                             "; every shard and part is kept: fix the cause, then rerun with "
-                             "--resume (a part still unreadable then is rendered again)")
-        tables = [self.tables[k] for k in sorted(self.tables)]
-        merged = self.store / MANIFEST_FILE
-        if merged.is_file():  # an earlier merge: its rows of shards without a part
-            try:
-                old = read_manifest_table(merged)
-            except (OSError, pa.ArrowException):
-                old = None  # damaged: its shards have no part and are reported missing
-            if old is not None:
-                redone = pa.array(sorted(self.tables), pa.int32())
-                tables.insert(0, old.filter(pc.invert(pc.is_in(old.column("shard"),
-                                                                value_set=redone))))
-        if not tables:
-            raise StoreError(f"{self.store}: no manifest parts")
-        table = pa.concat_tables(tables).sort_by("frame")
-        frames = table.column("frame").to_numpy()
-        if len(frames) != num_frames or not np.array_equal(frames, np.arange(num_frames)):
-            dup = len(frames) - len(np.unique(frames))
-            missing = num_frames - len(np.unique(frames))
-            raise StoreError(f"{self.store}: manifest has {len(frames)} rows for {num_frames} "
-                             f"frames ({dup} duplicated, {missing} missing)")
-        write_parquet(table, merged)
+        """Append the shards not written yet (of an earlier run, or every shard when
+        merging what is on disk), check every frame appears once, rename the file into
+        place and remove the parts."""
+        if self.shards is None:
+            self.shards = sorted(_part_shards(self.store) | _manifest_shards(
+                self.store / MANIFEST_FILE))
+        self.waiting.clear()
+        try:
+            if self.error is not None:
+                raise self.error
+            self._advance()
+            if self.bad:
+                raise StoreError(
+                    f"{self.store}: cannot merge the manifest: {len(self.bad)} part(s) "
+                    f"unreadable: {'; '.join(self.bad[:3])}"
+                    f"{' ...' if len(self.bad) > 3 else ''}; every shard and part is kept: "
+                    "fix the cause, then rerun with --resume (a part still unreadable then "
+                    "is rendered again)")
+            self._flush()
+            seen = self.seen[:num_frames]
+            rows = int(self.seen.sum())
+            if self.writer is None:
+                raise StoreError(f"{self.store}: no manifest parts")
+            if rows != num_frames or len(seen) < num_frames or (seen != 1).any():
+                dup = int(np.maximum(self.seen - 1, 0).sum())
+                missing = num_frames - int((seen > 0).sum())
+                raise StoreError(f"{self.store}: manifest has {rows} rows for {num_frames} "
+                                 f"frames ({dup} duplicated, {missing} missing)")
+            self.writer.close()
+            self.writer = None
+            self.old.close()
+            os.replace(self.tmp, self.store / MANIFEST_FILE)
+        finally:
+            if self.writer is not None:
+                self.writer.close()
+                self.tmp.unlink(missing_ok=True)
         parts = self.store / MANIFEST_PARTS
         for p in parts.glob("part-*.parquet"):
             p.unlink()
         if parts.is_dir() and not any(parts.iterdir()):
             parts.rmdir()
-        return merged
+        return self.store / MANIFEST_FILE
+
+
+def _part_shards(store: Path) -> set[int]:
+    return {int(p.stem.split("-")[1]) for p in (store / MANIFEST_PARTS).glob("part-*.parquet")}
+
+
+def _manifest_shards(path: Path) -> set[int]:
+    """The shards of the manifest at ``path`` (none when it is missing or unreadable)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        return set(np.unique(pq.read_table(path, columns=["shard"]).column("shard")
+                             .to_numpy()).tolist()) if path.is_file() else set()
+    except (OSError, pa.ArrowException):
+        return set()
 
 
 def _first_line(e: BaseException) -> str:
