@@ -62,9 +62,12 @@ import numpy as np
 
 from vhgen.camera import Intrinsics, backproject
 from vhgen.forest.person_stage import PersonStage
+from vhgen.geom.planes import depth_noise as _depth_noise
+from vhgen.geom.planes import find_plane as _find_plane
+from vhgen.geom.planes import on_plane as _on_plane
 from vhgen.geom.planes import plane_basis as _plane_basis
-from vhgen.geom.planes import ransac_plane as _ransac_plane
 from vhgen.geom.planes import spread as _spread
+from vhgen.geom.planes import triples as _triples
 
 # what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
@@ -126,6 +129,11 @@ class Segmenter:
     min_person_prob: float = 0.5
     seed: int = 0
 
+    def plane_tolerance(self, z: np.ndarray) -> np.ndarray:
+        """(N,) float64 m: how far from a plane its inliers at depths ``z`` (N,) m lie,
+        ``plane_tol_m`` times z^2 (z from 0.3 m on), at most ``plane_tol_max_m``."""
+        return _depth_noise(z, self.plane_tol_m, near_m=0.3, most_m=self.plane_tol_max_m)
+
     def planes(self, points: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(H, W) bool: pixels on the dominant planes' large patches (step 1)."""
         return self.find_planes(points, valid)[0]
@@ -147,14 +155,17 @@ class Segmenter:
             if len(idx) < max(3, self.min_plane_fraction * n_valid):
                 break
             p = flat[idx]
-            inliers, plane = _ransac_plane(p, rng, self.ransac_iterations, self.plane_tol_m,
-                                           self.plane_tol_max_m)
+            # the most inliers of plain RANSAC, refitted by least squares
+            fit = _find_plane(p, self.plane_tolerance(p[:, 2]),
+                              _triples(p, rng, self.ransac_iterations))
+            if fit is None:
+                break
+            normal, offset, inliers = fit
             if inliers.sum() < self.min_plane_fraction * n_valid:
                 break
             mask = np.zeros(valid.shape, bool)
             mask.reshape(-1)[idx[inliers]] = True
             left &= ~mask
-            normal, offset = plane
             # background when its inliers spread along both in-plane axes (a floor, a
             # wall: even where quantisation at a distance cuts them into stripes)
             if _spread(p[inliers] @ _plane_basis(normal).T).min() < self.min_patch_m:
@@ -167,10 +178,8 @@ class Segmenter:
             held = valid & ~on_plane & ~left & ~mask
             if held.any():
                 q = points[held]
-                tol = np.minimum(self.plane_tol_m * np.maximum(q[:, 2], 0.3) ** 2,
-                                 self.plane_tol_max_m)
                 more = np.zeros(valid.shape, bool)
-                more[held] = np.abs(q @ normal - offset) < tol
+                more[held] = _on_plane(q, self.plane_tolerance(q[:, 2]), normal, offset)
                 mask |= more
             on_plane |= mask
             # the floor: below the camera, its normal near the camera's up (-y)

@@ -1,9 +1,10 @@
 """The floor of a real depth frame and its free floor (pure).
 
-:func:`estimate_floor`: the floor plane, RANSAC on the back-projected points (float64;
-hypotheses and the depth noise's growth with distance in the residual scale from
-:mod:`vhgen.geom.planes`); :func:`free_floor`: the grid of floor cells a person may stand
-on, and how much room each has. Both run once per background, when the job's backgrounds
+:func:`estimate_floor`: the floor plane, found on the back-projected points (float64) by
+the plane finder of :mod:`vhgen.geom.planes` with the floor's hypotheses (level, under the
+camera), cost, refit and rules (nothing under it) and the sensor's depth noise as the
+residual scale; :func:`free_floor`: the grid of floor cells a person may stand on, and
+how much room each has. Both run once per background, when the job's backgrounds
 are read (:mod:`vhgen.scene.background.load`).
 
 World frame of a background (:meth:`FloorPlane.world_to_camera`): y up and y = 0 the real
@@ -19,7 +20,7 @@ import numpy as np
 
 from vhgen.camera import Intrinsics, project
 from vhgen.errors import BackgroundError
-from vhgen.geom.planes import depth_noise, planes_through
+from vhgen.geom.planes import Hypotheses, depth_noise, find_plane, planes_through
 from vhgen.scene.background.background_frame import FloorPlane
 
 # -- the floor --------------------------------------------------------------------------
@@ -90,65 +91,11 @@ def _normals(depth_mm: np.ndarray, intr: Intrinsics, step: int) -> tuple[np.ndar
     return grid[ok], normals[ok]
 
 
-def _cost(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.ndarray,
-          h: np.ndarray) -> np.ndarray:
-    """MSAC cost of planes (K, 3), (K,): truncated squared residuals in sigma of the
-    points that face along a plane's normal (others are outliers of it), a point under a
-    plane counting BELOW_PENALTY outliers. facing: (N, 3) local normals. (K,)"""
-    r = (points @ n.T + h) / sigma[:, None]
-    inlier = np.abs(facing @ n.T) >= math.cos(math.radians(FACING_DEG))
-    return (np.where(inlier, np.minimum(r * r, CUT * CUT), CUT * CUT)
-            + np.where(r < -CUT, CUT * CUT * BELOW_PENALTY, 0.0)).sum(0)
-
-
-def _refine(points: np.ndarray, sigma: np.ndarray, facing: np.ndarray, n: np.ndarray,
-            h: float) -> tuple[np.ndarray, float]:
-    """Tukey-weighted least squares of the plane on the points facing along it (iterated
-    to convergence from a hypothesis); the normal turned to point up (-y in the camera
-    frame)."""
-    cos_facing = math.cos(math.radians(FACING_DEG))
-    # only points near the hypothesis can ever weigh (the plane moves little)
-    near = np.abs(points @ n + h) < 3 * CUT * sigma
-    points, sigma, facing = points[near], sigma[near], facing[near]
-    for _ in range(30):
-        u = (points @ n + h) / sigma / CUT
-        w = np.where((np.abs(u) < 1) & (np.abs(facing @ n) >= cos_facing),
-                     (1 - u * u) ** 2, 0.0) / sigma ** 2
-        if w.sum() <= 0:
-            break
-        c = (points * w[:, None]).sum(0) / w.sum()
-        m = ((points - c) * w[:, None]).T @ (points - c)
-        n2 = np.linalg.eigh(m)[1][:, 0]
-        n2 = -n2 if n2[1] > 0 else n2
-        h2 = float(-n2 @ c)
-        done = np.abs(n2 - n).max() < 1e-8 and abs(h2 - h) < 1e-8
-        n, h = n2, h2
-        if done:
-            break
-    return n, h
-
-
-def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
-                   path: str = "<frame>") -> FloorPlane:
-    """The floor plane of a real depth frame (H, W) uint16 mm (0 = no measurement).
-
-    RANSAC in float64 on the points of every FLOOR_STEP_PX-th pixel: HYPOTHESES planes
-    through three points (a fixed seed: the same file gives the same floor), kept when
-    their normal is within MAX_TILT_DEG of the image's up direction with the camera
-    CAMERA_HEIGHT_M above them; the REFINED cheapest distinct ones (MSAC cost on
-    SCORE_POINTS of the points, points under the plane penalised, points whose surface
-    does not face along the plane outliers) are refined by Tukey-weighted least squares
-    on all the points, and the cheapest refined plane
-    with at most MAX_BELOW of the points under it wins. BackgroundError naming ``path``
-    when no plane qualifies or the best holds less than MIN_FLOOR_FRACTION of the points.
-    """
-    p, facing = _normals(depth_mm, intr, FLOOR_STEP_PX)
-    if len(p) < 100:
-        raise BackgroundError(path, f"no floor: only {len(p)} measured points")
-    facing = np.nan_to_num(facing)  # no normal (an edge): faces nothing
-    sigma = _sigma(p)
-    rng = np.random.default_rng(0)
-    # hypotheses through points facing up-ish (within MAX_TILT_DEG + FACING_DEG)
+def _hypotheses(p: np.ndarray, facing: np.ndarray, rng: np.random.Generator,
+                path: str) -> Hypotheses:
+    """HYPOTHESES planes through three points facing up-ish (within MAX_TILT_DEG +
+    FACING_DEG), kept when level (within MAX_TILT_DEG) and CAMERA_HEIGHT_M under the
+    camera, to be ranked on SCORE_POINTS of the points (a fixed sample)."""
     up = np.flatnonzero(np.abs(facing[:, 1]) >= math.cos(math.radians(
         min(89.0, MAX_TILT_DEG + FACING_DEG))))
     if len(up) < 3:
@@ -156,7 +103,7 @@ def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
     idx = up[rng.integers(len(up), size=(HYPOTHESES, 3))]
     a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
     n, ok = planes_through(a, b, c, min_norm=1e-12)
-    h = -(n * a).sum(1)
+    h = -(n * a).sum(1)  # the camera's height over the plane
     n *= np.where(h < 0, -1.0, 1.0)[:, None]  # the camera on the positive side
     h = np.abs(h)
     ok &= ((-n[:, 1] >= math.cos(math.radians(MAX_TILT_DEG)))
@@ -166,38 +113,51 @@ def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
         raise BackgroundError(path, f"no floor: no plane within {MAX_TILT_DEG:g} deg of "
                               f"level {CAMERA_HEIGHT_M[0]}-{CAMERA_HEIGHT_M[1]} m under "
                               "the camera")
-    # hypotheses are ranked on a sample of the points (a fixed one), refined on all
-    sample = rng.permutation(len(p))[:SCORE_POINTS]
-    cost = np.concatenate([_cost(p[sample], sigma[sample], facing[sample], n[k], h[k])
-                           for k in np.array_split(keep, -(-len(keep) // 64))])
-    best: tuple[float, np.ndarray, float] | None = None
+    return Hypotheses(n[keep], -h[keep], rng.permutation(len(p))[:SCORE_POINTS])
+
+
+def estimate_floor(depth_mm: np.ndarray, intr: Intrinsics,
+                   path: str = "<frame>") -> FloorPlane:
+    """The floor plane of a real depth frame (H, W) uint16 mm (0 = no measurement).
+
+    RANSAC in float64 on the points of every FLOOR_STEP_PX-th pixel
+    (:func:`vhgen.geom.planes.find_plane`): HYPOTHESES planes through three points (a
+    fixed seed: the same file gives the same floor), kept when their normal is within
+    MAX_TILT_DEG of the image's up direction with the camera CAMERA_HEIGHT_M above them;
+    the REFINED cheapest distinct ones (MSAC cost on SCORE_POINTS of the points, points
+    under the plane penalised, points whose surface does not face along the plane
+    outliers) are refined by Tukey-weighted least squares on all the points, and the
+    cheapest refined plane that is still level under the camera with at most MAX_BELOW
+    of the points under it wins. BackgroundError naming ``path`` when no plane qualifies
+    or the best holds less than MIN_FLOOR_FRACTION of the points.
+    """
+    p, facing = _normals(depth_mm, intr, FLOOR_STEP_PX)
+    if len(p) < 100:
+        raise BackgroundError(path, f"no floor: only {len(p)} measured points")
+    facing = np.nan_to_num(facing)  # no normal (an edge): faces nothing
+    sigma = _sigma(p)
     worst_below = 0.0
-    tried: list[tuple[np.ndarray, float]] = []
-    for k in keep[np.argsort(cost, kind="stable")]:
-        if len(tried) == REFINED:
-            break
-        # a hypothesis within 1 deg and 2 cm of one refined already refines to the same
-        if any(float(n[k] @ m) > math.cos(math.radians(1.0)) and abs(h[k] - g) < 0.02
-               for m, g in tried):
-            continue
-        tried.append((n[k], float(h[k])))
-        nk, hk = _refine(p, sigma, facing, n[k], float(h[k]))
-        r = (p @ nk + hk) / sigma
-        below = float((r < -CUT).mean())
-        tilt_ok = -nk[1] >= math.cos(math.radians(MAX_TILT_DEG))
-        if below > MAX_BELOW or not tilt_ok or not CAMERA_HEIGHT_M[0] <= hk <= CAMERA_HEIGHT_M[1]:
+
+    def floor_like(n: np.ndarray, offset: float) -> bool:
+        nonlocal worst_below
+        h = -offset  # the camera's height over the plane
+        below = float(((p @ n + h) / sigma < -CUT).mean())
+        if (below > MAX_BELOW or not -n[1] >= math.cos(math.radians(MAX_TILT_DEG))
+                or not CAMERA_HEIGHT_M[0] <= h <= CAMERA_HEIGHT_M[1]):
             worst_below = max(worst_below, below)
-            continue
-        ck = float(_cost(p, sigma, facing, nk[None], np.array([hk]))[0])
-        if best is None or ck < best[0]:
-            best = (ck, nk, hk)
-    if best is None:
+            return False
+        return True
+
+    fit = find_plane(p, sigma, _hypotheses(p, facing, np.random.default_rng(0), path),
+                     cut=CUT, facing=facing, facing_deg=FACING_DEG, score="msac",
+                     below_penalty=BELOW_PENALTY, refit="tukey", up=np.array([0.0, -1.0, 0.0]),
+                     tries=REFINED, accept=floor_like)
+    if fit is None:
         raise BackgroundError(path, f"no floor: every level plane under the camera has "
                               f"measured points under it (up to {100 * worst_below:.1f}%; "
                               f"a floor has at most {100 * MAX_BELOW:.1f}%)")
-    _, nk, hk = best
-    r = (p @ nk + hk) / sigma
-    on = (np.abs(r) < CUT) & (np.abs(facing @ nk) >= math.cos(math.radians(FACING_DEG)))
+    nk, offset, on = fit
+    hk = -offset
     frac = float(on.mean())
     if frac < MIN_FLOOR_FRACTION:
         raise BackgroundError(path, f"no floor: the best level plane under the camera "
