@@ -8,7 +8,9 @@ through the environment variable :data:`ENV` (JSON), read when a worker is const
   one of them is attempted;
 - ``write_error``: (errno, shards); writing those shards fails with that OSError;
 - ``setup_error``: a message; the set-up fails with a RenderError;
-- ``crash``: shards; a plain bug (RuntimeError) on those shards.
+- ``crash``: shards; a plain bug (RuntimeError) on those shards;
+- ``gl_lost_once``: shards; the GL context fails (``moderngl.Error``) at the second frame
+  the first time one of them is attempted, as a GPU reset or a lost device would.
 
 With ``die_once``, faults of a replacement worker (one setting up after a ``die_once``
 death): ``die_in_setup`` (n) kills the process in its set-up the first n times;
@@ -82,6 +84,21 @@ class FaultyWorker(FrameWorker):
             if not marker.exists():
                 marker.touch()
                 os._exit(1)
+        if shard in f.get("gl_lost_once", ()) and self.gen is not None:
+            marker = Path(f["markers"]) / f"gl-lost-{shard}"
+            if not marker.exists():
+                marker.touch()
+                import moderngl
+
+                real_render, calls = self.gen.render, []
+
+                def render(desc: Any) -> Any:
+                    calls.append(desc)
+                    if len(calls) == 2:
+                        raise moderngl.Error("GL_CONTEXT_LOST (injected)")
+                    return real_render(desc)
+
+                self.gen.render = render
         if shard in f.get("crash", ()):
             raise RuntimeError(f"injected bug on shard {shard}")
         if "write_error" in f and shard in f["write_error"][1]:

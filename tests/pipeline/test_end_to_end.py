@@ -150,6 +150,26 @@ def test_dead_worker_loses_and_duplicates_nothing(smoke, shared_mocap, executor)
     assert man.column("frame").to_pylist() == list(range(10))
 
 
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_lost_gl_context_is_a_dead_worker(smoke, executor, capfd):
+    """A GL context that fails mid-shard (injected moderngl.Error at the shard's second
+    frame): the worker exits, the shard is redone whole on a new worker, and the store is
+    the same bytes as a run without faults, every frame once."""
+    import pyarrow.parquet as pq
+
+    tmp, cfg, _ = smoke
+    out = tmp / f"gl-lost-{executor}.zarr"
+    summary = run_faulty(cfg, out, {"gl_lost_once": {1}}, executor=executor)
+    assert summary.frames == 10 and summary.retries == 1
+    a, b = _store_files(tmp / "two.zarr"), _store_files(out)
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+    man = pq.read_table(out / "manifest.parquet")
+    assert man.column("frame").to_pylist() == list(range(10))
+    if executor == "local":  # the worker's one line (a Ray actor's goes to its log)
+        err = capfd.readouterr().err
+        assert "GL failed on shard 1 (Error: GL_CONTEXT_LOST (injected))" in err
+
+
 def test_preview_sheet(smoke, tmp_path):
     from PIL import Image
 

@@ -7,6 +7,7 @@ The same class runs in a Ray actor and in a process of the local pool (both in
 from __future__ import annotations
 
 import os
+import sys
 from typing import Any
 
 import numpy as np
@@ -73,4 +74,17 @@ class FrameWorker:
         task queued after its load even when the load raised)."""
         if self.gen is None:
             raise self.setup_error or RuntimeError("FrameWorker.run before load")
-        return self.gen.run_task(store, shard, start, stop)
+        from vhgen.render.context import GL_LOST_EXIT, gl_failures
+
+        try:
+            return self.gen.run_task(store, shard, start, stop)
+        except gl_failures() as e:
+            # a lost context (a GPU reset, a driver fault, out of GPU memory) is a dead
+            # worker: nothing of the shard is written yet (write_shard comes after its
+            # last frame), so the driver redoes it whole on a new worker, as after a crash
+            first = (str(e).strip().splitlines() or [""])[0][:200]
+            sys.stderr.write(f"vhgen worker (pid {os.getpid()}): GL failed on shard {shard} "
+                             f"({type(e).__name__}: {first}); the process exits and the "
+                             "shard is redone on a new worker\n")
+            sys.stderr.flush()
+            os._exit(GL_LOST_EXIT)

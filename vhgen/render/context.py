@@ -26,6 +26,17 @@ from vhgen.errors import RenderError
 log = logging.getLogger(__name__)
 
 BACKENDS = ("egl", "osmesa")
+# a frame worker's process exits with this code when its GL context fails mid-shard
+GL_LOST_EXIT = 70
+
+
+def gl_failures() -> tuple[type[BaseException], ...]:
+    """The exceptions of a failing GL context (moderngl's: a lost context or device, out
+    of GPU memory, a framebuffer that cannot be read): a worker that meets one mid-shard
+    cannot trust its context any more (see :func:`vhgen.pipeline.worker.FrameWorker.run`)."""
+    import moderngl
+
+    return (moderngl.Error,)
 
 _OSMESA_RGBA = 0x1908  # GL_RGBA
 _OSMESA_FORMAT = 0x22
