@@ -33,6 +33,17 @@ def store(synthetic, tmp_path):
     return out
 
 
+def redo_shard(store, table, shard: int, avatar_id: int):
+    """A redone shard's part, as a resumed run leaves it: ``shard``'s rows of ``table``
+    with another ``avatar_id``. Returns the part's rows."""
+    changed = table.filter(pc.equal(table.column("shard"), shard)).set_column(
+        table.column_names.index("avatar_id"), "avatar_id",
+        pa.array([avatar_id] * PER_SHARD, pa.int32()))
+    (store / "manifest").mkdir(exist_ok=True)
+    write_parquet(changed, store / "manifest" / f"part-{shard:06d}.parquet")
+    return changed
+
+
 def test_merge_removes_the_parts(store, synthetic):
     unmerge_manifest(store)  # a run stopped before its merge: parts only
     assert completed_shards(store) == SHARDS and not (store / "manifest.parquet").exists()
@@ -64,11 +75,7 @@ def test_a_redone_shard_replaces_its_rows(store):
     ManifestMerger(store).finish(FRAMES)
     table = read_manifest(store)
     mine = pc.equal(table.column("shard"), 2)
-    changed = table.filter(mine).set_column(
-        table.column_names.index("avatar_id"), "avatar_id",
-        pa.array([99] * PER_SHARD, pa.int32()))
-    (store / "manifest").mkdir()
-    write_parquet(changed, store / "manifest" / "part-000002.parquet")
+    redo_shard(store, table, 2, 99)
     ManifestMerger(store).finish(FRAMES)
     got = read_manifest(store)
     assert got.num_rows == FRAMES
@@ -122,12 +129,7 @@ def test_resume_takes_rows_from_an_earlier_manifest_row_group_by_row_group(
     ManifestMerger(store).finish(FRAMES)
     table = read_manifest(store)
     assert pq.ParquetFile(store / "manifest.parquet").metadata.num_row_groups == 3
-    mine = pc.equal(table.column("shard"), 3)
-    changed = table.filter(mine).set_column(
-        table.column_names.index("avatar_id"), "avatar_id",
-        pa.array([7] * PER_SHARD, pa.int32()))
-    (store / "manifest").mkdir()
-    write_parquet(changed, store / "manifest" / "part-000003.parquet")
+    changed = redo_shard(store, table, 3, 7)
     merger = ManifestMerger(store, sorted(SHARDS), {3})
     merger.add(3)
     merger.finish(FRAMES)
@@ -157,3 +159,15 @@ def test_an_unreadable_part_is_named_and_the_job_goes_on(store):
     with pytest.raises(StoreError, match=r"1 part\(s\) unreadable: part-000002.parquet"):
         merger.finish(FRAMES)
     assert len(list((store / "manifest").glob("part-*.parquet"))) == 6
+
+
+def test_a_merge_the_driver_did_not_finish_is_cleaned_on_resume(store):
+    from vhgen.store.zarr_store import clean_partials
+
+    unmerge_manifest(store)
+    merger = ManifestMerger(store, sorted(SHARDS), SHARDS)
+    merger.add(0)
+    merger._flush()  # rows on disk in manifest.parquet.tmp, then the driver is killed
+    assert (store / "manifest.parquet.tmp").is_file()
+    assert clean_partials(store) == 1 and not (store / "manifest.parquet.tmp").exists()
+    assert completed_shards(store) == SHARDS  # the parts still say what is done

@@ -29,7 +29,12 @@ import numpy as np
 
 from vhgen.errors import StoreError
 from vhgen.store.record import FrameRecord, PersonRecord, columns
-from vhgen.store.zarr_store import MANIFEST_FILE, MANIFEST_PARTS
+from vhgen.store.zarr_store import (
+    MANIFEST_FILE,
+    MANIFEST_MERGING,
+    MANIFEST_PARTS,
+    completed_shards,
+)
 
 
 def _arrow(kind: str, num_joints: int):
@@ -275,7 +280,7 @@ class ManifestMerger:
         self.waiting = set(todo)  # shards of this run not finished yet
         self.pos = 0  # index in self.shards of the next shard to write
         self.old = _OldRows(self.store / MANIFEST_FILE)
-        self.tmp = self.store / (MANIFEST_FILE + ".tmp")
+        self.tmp = self.store / MANIFEST_MERGING
         self.writer: Any = None
         self.rows: list[Any] = []
         self.count = 0  # rows buffered
@@ -355,8 +360,7 @@ class ManifestMerger:
         merging what is on disk), check every frame appears once, rename the file into
         place and remove the parts."""
         if self.shards is None:
-            self.shards = sorted(_part_shards(self.store) | _manifest_shards(
-                self.store / MANIFEST_FILE))
+            self.shards = sorted(completed_shards(self.store))
         self.waiting.clear()
         try:
             if self.error is not None:
@@ -393,22 +397,6 @@ class ManifestMerger:
         if parts.is_dir() and not any(parts.iterdir()):
             parts.rmdir()
         return self.store / MANIFEST_FILE
-
-
-def _part_shards(store: Path) -> set[int]:
-    return {int(p.stem.split("-")[1]) for p in (store / MANIFEST_PARTS).glob("part-*.parquet")}
-
-
-def _manifest_shards(path: Path) -> set[int]:
-    """The shards of the manifest at ``path`` (none when it is missing or unreadable)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    try:
-        return set(np.unique(pq.read_table(path, columns=["shard"]).column("shard")
-                             .to_numpy()).tolist()) if path.is_file() else set()
-    except (OSError, pa.ArrowException):
-        return set()
 
 
 def _first_line(e: BaseException) -> str:

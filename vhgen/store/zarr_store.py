@@ -40,6 +40,7 @@ from vhgen.scene.geometry import SCENE_CLASSES
 CONTRACT_VERSION = 1
 MANIFEST_PARTS = "manifest"
 MANIFEST_FILE = "manifest.parquet"
+MANIFEST_MERGING = MANIFEST_FILE + ".tmp"  # the merge writes here, then renames
 
 
 CODECS = ("zstd", "lz4")
@@ -186,6 +187,10 @@ def clean_partials(path: str | Path) -> int:
         n += 1
     for p in (Path(path) / MANIFEST_PARTS).glob("*.tmp"):
         p.unlink()
+        n += 1
+    merging = Path(path) / MANIFEST_MERGING  # a merge the driver did not finish
+    if merging.is_file():
+        merging.unlink()
         n += 1
     return n
 
