@@ -135,7 +135,7 @@ def main() -> None:
     t = time.perf_counter()
     base = icl_style_window(d, dots)
     t_base = time.perf_counter() - t
-    ours, ok = correlation_window(d, valid, dots, 4, 1 / 1.5, 0.1, 3.1)
+    ours, ok, _ = correlation_window(d, valid, dots, 4, 1 / 1.5, 0.1, 3.1)
     agree = np.mean((base > 0) == ok)
     print(f"\ndot-gated 9x9 window on '{fr.name}' ({int(dots.sum())} dots):")
     print(f"  straightforward NumPy (ICL-NUIM style) {t_base * 1000:9.1f} ms")

@@ -54,11 +54,14 @@ def accepted_dots(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int,
 
 
 def reference(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int, frac: float,
-              inlier_px: float, splat_r: float) -> tuple[np.ndarray, np.ndarray]:
+              inlier_px: float, splat_r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(disparity, valid, source): source is the flat index of the dot each pixel took
+    its disparity from, the pixel's own where no dot reached it."""
     h, w = d.shape
     accepted = accepted_dots(d, valid, dots, half, frac, inlier_px)
     out = np.zeros((h, w))
     weight = np.zeros((h, w))
+    source = np.arange(h * w).reshape(h, w)
     r = math.floor(splat_r)
     for y, x in accepted:  # raster order
         for j in range(-r, r + 1):
@@ -69,7 +72,8 @@ def reference(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int, fra
                     if wt > weight[yy, xx]:
                         weight[yy, xx] = wt
                         out[yy, xx] = d[y, x]
-    return out, weight > 0
+                        source[yy, xx] = y * w + x
+    return out, weight > 0, source.reshape(-1)
 
 
 def scene(rng: np.random.Generator, h: int, w: int, p_valid: float, p_dot: float,
@@ -90,11 +94,16 @@ def scene(rng: np.random.Generator, h: int, w: int, p_valid: float, p_dot: float
 
 def check(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int, frac: float,
           inlier_px: float, splat_r: float) -> tuple[np.ndarray, np.ndarray]:
-    got_d, got_v = correlation_window(d, valid, dots, half, frac, inlier_px, splat_r)
-    ref_d, ref_v = reference(d, valid, dots, half, frac, inlier_px, splat_r)
+    got_d, got_v, got_s = correlation_window(d, valid, dots, half, frac, inlier_px, splat_r,
+                                             True)
+    ref_d, ref_v, ref_s = reference(d, valid, dots, half, frac, inlier_px, splat_r)
     assert got_v.dtype == np.bool_ and got_d.dtype == np.float64
     np.testing.assert_array_equal(got_v, ref_v)
     assert got_d.tobytes() == ref_d.tobytes()  # bit-identical, including signed zeros
+    np.testing.assert_array_equal(got_s, ref_s)  # the dot each pixel took, ties included
+    # without the sources asked for: the same image, no index array
+    no_d, no_v, no_s = correlation_window(d, valid, dots, half, frac, inlier_px, splat_r)
+    assert no_d.tobytes() == got_d.tobytes() and (no_v == got_v).all() and no_s.size == 0
     return got_d, got_v
 
 

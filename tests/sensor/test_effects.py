@@ -178,17 +178,26 @@ def test_correlation_window_fills_planes_loses_thin_rods_fattens_edges(tmp_path)
         rod = out.disparity[40:200, 150:150 + width_px]
         near = np.isclose(rod, F * B / 2.0, atol=0.2)
         assert (near.mean() > 0.5) == survives, width_px
+    fattened = []  # pixels rendered far, measured (and now labelled) near
     for zf, hole_band in ((1.5, True), (2.5, False)):
         z = _plane(3.0, 240, 320)
         z[:, 160:] = zf
-        out = m.simulate(z, None)
+        lab = np.where(np.arange(320) >= 160, 2, 1).astype(np.uint32) + np.zeros((240, 1),
+                                                                                 np.uint32)
+        out = m.simulate(z, None, labels=lab)
         fg = np.isclose(out.disparity, F * B / zf, atol=0.3)
         cols = np.array([np.flatnonzero(fg[r])[0] for r in range(40, 200) if fg[r].any()])
         off = np.abs(cols - 160)  # the edge moves by about the window half-width at most
         assert np.percentile(off, 95) <= 4 and off.max() <= 6
+        # a pixel measures the surface of the dot that won it, and is labelled with it:
+        # the pixels the near plane's splats took from the far one are the near plane's
+        bg = np.isclose(out.disparity, F * B / 3.0, atol=0.3)
+        assert (out.labels[fg & out.valid] == 2).all() and (out.labels[bg & out.valid] == 1).all()
+        fattened.append(int(((lab == 1) & fg & out.valid).sum()))
         holes = (~out.valid[40:200, 150:170]).sum(axis=1)
         # a 14 px disparity jump fails the inlier test on both sides: a band of holes
         assert (np.median(holes) >= 2) == hole_band, zf
+    assert max(fattened) > 20, fattened
 
 
 def test_grazing_dropout_and_nguyen_angle_term_stay_finite(tmp_path):

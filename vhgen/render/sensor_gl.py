@@ -510,7 +510,7 @@ class CorrelationWindowPass(GLPass[CorrelationWindow], spec=CorrelationWindow):
         self._args(1)
         m.dispatch_list(pr["SCATTER"], m.counts, 12)
         m.dispatch(pr["SPLAT"])
-        m.swap("val")
+        m.swap("val", "ids", "inc")
 
     def _args(self, which: int) -> None:
         """The work groups of list ``which`` (0 candidates, 1 accepted dots)."""

@@ -4,9 +4,9 @@ Each class is a frozen dataclass: its fields are the parameters (type, unit, ran
 field), its ``READS`` / ``WRITES`` the state channels it touches. What each effect does to
 a frame lives in :mod:`vhgen.sensor.stages` (and :mod:`vhgen.sensor.structured_light`);
 this module is pure description and imports neither numba nor scipy. Effects that move
-pixels (lens distortion, lateral noise) move labels and the incidence with them, so the ground
-truth stays aligned with the depth. E10, the output encoding, is
-:class:`vhgen.sensor.spec.Encoding`.
+pixels (lens distortion, lateral noise, the correlation window's splats) move labels and
+the incidence with them, so the ground truth stays aligned with the depth. E10, the output
+encoding, is :class:`vhgen.sensor.spec.Encoding`.
 """
 
 from __future__ import annotations
@@ -131,7 +131,9 @@ class ProjectorShadow(EffectSpec, name="projector_shadow"):
 class CorrelationWindow(EffectSpec, name="correlation_window"):
     """E5: the dot-gated correlation window (edge fattening, thin-structure loss, fill
     between dots), compiled with numba. Thresholds: BlenSor's 1/1.5 (``frac``), the
-    ICL-NUIM value is 1/1.2. Dots come from the sensor's projector pattern."""
+    ICL-NUIM value is 1/1.2. Dots come from the sensor's projector pattern. A pixel a dot's
+    splat reaches measures that dot's surface and takes its labels and incidence: a
+    person's fattened edge over the wall is labelled the person, as its depth says."""
 
     window: int = number(9, 3, 31, unit="px", integer=True, odd=True)
     frac: float = number(1 / 1.5, 0.0, 1.0)
@@ -139,7 +141,7 @@ class CorrelationWindow(EffectSpec, name="correlation_window"):
     splat_radius_px: float = number(3.1, 0.0, 10.0, unit="px")
 
     READS = MEASURE | {"pattern"}
-    WRITES = MEASURE
+    WRITES = MEASURE | {"labels", "incidence"}  # moved with the splats when given
     GL = True
 
 

@@ -112,22 +112,29 @@ def _cw_sat_pair(db, vf, of, stray, y, w, sv, ss, sd, r0, r1, r2, mrow, brow, fr
 
 
 @numba.njit(cache=True, nogil=True)
-def _cw_finish_row(yf, b, w, big, na, key, lo, hi, dacc, outf, okf):  # pragma: no cover
-    """Write image row yf from splat-key buffer row b (only its touched x range)."""
+def _cw_finish_row(yf, b, w, big, na, key, lo, hi, dacc, sacc, outf, okf,
+                   srcf):  # pragma: no cover
+    """Write image row yf from splat-key buffer row b (only its touched x range); a
+    non-empty ``srcf`` gets the flat index of each splatted pixel's dot."""
     base = U(b * w)
     p0 = U(yf) * U(w)
     mask = (U(1) << U(40)) - U(1)
     ub = U(big)
     una = U(na)
+    want = srcf.size > 0
     for x in range(lo[b], hi[b] + 1):
         kk = key[base + U(x)]
         # low bits = big - (index of the dot in dacc); no splat: key 0 -> dacc[na] = 0
-        outf[p0 + U(x)] = dacc[min(ub - (kk & mask), una)]
+        i = min(ub - (kk & mask), una)
+        outf[p0 + U(x)] = dacc[i]
         okf[p0 + U(x)] = np.uint8(kk != U(0))
+        if want and kk != U(0):
+            srcf[p0 + U(x)] = sacc[i]
 
 
 @numba.njit(cache=True, nogil=True)
-def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragma: no cover
+def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r,
+                       want_source=False):  # pragma: no cover
     """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
 
     d : (H, W) float64 disparity (px); valid : (H, W) bool; dots : (H, W) bool, a dot of
@@ -139,8 +146,11 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     its own disparity to every pixel within ``splat_r`` px (ValueError above
     sqrt(254) ~ 15.9 px), where the splat weight 1 / (1 + r^2) beats what the pixel
     already holds (dots splat in raster order, so on a tie the earlier dot keeps the
-    pixel). Pixels no accepted dot reaches are holes. Returns (d_out, valid_out); d_out is
-    0 where valid_out is False.
+    pixel). Pixels no accepted dot reaches are holes. Returns (d_out, valid_out, source);
+    d_out is 0 where valid_out is False; with ``want_source``, source is the flat (raster)
+    index of the dot whose disparity each pixel took (a pixel no dot reached: its own), so
+    that what the sensor reports at a pixel can carry that dot's ids and incidence (empty
+    without).
 
     The window sum of disparities is a float64 summed-area table: per row the running sum
     of d over the valid dots left to right, added to the table row above. The mean is
@@ -225,12 +235,14 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
     # disparities of the accepted dots, then a 0 that a key of 0 (no splat) points to
     dacc = np.empty(4096)
     dacc[0] = 0.0
+    sacc = np.empty(4096, dtype=np.int64)  # the dots' flat indices, beside dacc
     big = h * w  # above any dot count
     na = 0
     out = np.zeros((h, w))
     ok = np.zeros((h, w), dtype=np.bool_)
     outf = out.reshape(-1)
     okf = ok.reshape(-1).view(np.uint8)
+    src = np.arange(h * w) if want_source else np.empty(0, dtype=np.int64)
     built = 0  # SAT rows 0 .. built are in the ring
     for y in range(h):
         while built < min(y + half + 1, h):
@@ -256,6 +268,9 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 grown = np.empty(max(2 * dacc.size, na + nc + 1))
                 grown[:na + 1] = dacc[:na + 1]
                 dacc = grown
+                grown_s = np.empty(grown.size, dtype=np.int64)
+                grown_s[:na] = sacc[:na]
+                sacc = grown_s
             s0 = (y - half) % R
             a_row = U(s0) * W
             b_row = U((y + half + 1) % R) * W
@@ -310,6 +325,7 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
                 if not accepted:
                     continue
                 dacc[na] = df[p0 + U(x)]
+                sacc[na] = np.int64(p0 + U(x))
                 low = U(big - na)
                 na += 1
                 dacc[na] = 0.0
@@ -335,7 +351,8 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
         if y - r == boff + B - 1:
             for b in range(B):
                 if boff + b >= 0:
-                    _cw_finish_row(boff + b, b, w, big, na, key, lo, hi, dacc, outf, okf)
+                    _cw_finish_row(boff + b, b, w, big, na, key, lo, hi, dacc, sacc, outf, okf,
+                                   src)
             key[:2 * r * w] = key[B * w:]
             key[2 * r * w:] = 0
             lo[:2 * r] = lo[B:]
@@ -344,8 +361,8 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r):  # pragm
             hi[2 * r:] = -1
             boff += B
     for yf in range(max(boff, 0), h):
-        _cw_finish_row(yf, yf - boff, w, big, na, key, lo, hi, dacc, outf, okf)
-    return out, ok
+        _cw_finish_row(yf, yf - boff, w, big, na, key, lo, hi, dacc, sacc, outf, okf, src)
+    return out, ok, src
 
 
 @numba.njit(cache=True, nogil=True)
@@ -471,12 +488,12 @@ def gather_state(idx, z, valid, incidence, labels):  # pragma: no cover
         z2[i] = zf[idx[i]]
     for i in range(h * w):
         v2[i] = vf[idx[i]]
-    return (z2.reshape(h, w), v2.reshape(h, w), _gather_if_present(idx, incidence, h * w),
-            _gather_if_present(idx, labels, h * w))
+    return (z2.reshape(h, w), v2.reshape(h, w), gather_if_present(idx, incidence, h * w),
+            gather_if_present(idx, labels, h * w))
 
 
 @numba.njit(cache=True, nogil=True)
-def _gather_if_present(idx, a, n):  # pragma: no cover
+def gather_if_present(idx, a, n):  # pragma: no cover
     """a (n values, any shape) re-sampled at ``idx``, flat; an absent (empty) ``a`` is
     returned as it is."""
     af = a.reshape(-1)

@@ -31,6 +31,7 @@ from vhgen.sensor.sensor_kernels import (
     dots_from_pattern,
     dropout_inplace,
     gate_inplace,
+    gather_if_present,
     gather_state,
     lateral_indices,
     quantise_inplace,
@@ -197,10 +198,20 @@ class CorrelationWindowStage(Stage[CorrelationWindow], spec=CorrelationWindow):
         if s.pattern is None:
             raise ValueError("correlation_window needs the projector dot pattern")
         dots = dots_from_pattern(d, s.valid, s.pattern, PATTERN_PAD)
-        out, ok = correlation_window(d, s.valid, dots, p.window // 2, p.frac, p.inlier_px,
-                                     p.splat_radius_px)
-        # Splats fatten edges onto pixels the surface did not cover: those pixels now carry
-        # a measurement while their label stays what was rendered there (the truth).
+        moves = s.labels is not None or s.incidence is not None
+        out, ok, src = correlation_window(d, s.valid, dots, p.window // 2, p.frac,
+                                          p.inlier_px, p.splat_radius_px, moves)
+        # A pixel reports the disparity of the dot whose splat won it, so it takes that
+        # dot's ids and incidence too: splats fatten a person's edge onto the wall behind,
+        # and those pixels now measure (and are labelled) the person, as lateral noise
+        # moves labels with the depth.
+        n = src.size
+        if s.labels is not None:
+            s.labels = gather_if_present(src, np.ascontiguousarray(s.labels), n
+                                          ).reshape(s.labels.shape)
+        if s.incidence is not None:
+            s.incidence = gather_if_present(src, np.ascontiguousarray(s.incidence), n
+                                             ).reshape(s.incidence.shape)
         lost = s.valid & ~ok
         s.d = out  # already 0 where not ok
         s.holes["window"] = s.hole("window") | lost

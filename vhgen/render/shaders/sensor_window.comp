@@ -13,9 +13,9 @@
 //   SCATTER: every accepted dot offers the pixels within SPLAT_R2 px^2 the key
 //            (255 - r^2) << 24 | (2^24 - 1 - its pixel index) (atomicMax): the largest
 //            weight 1 / (1 + r^2) wins, on a tie the dot first in raster order;
-//   SPLAT:   every pixel takes the disparity of its key's dot; pixels no accepted dot
-//            reaches become holes (cause WINDOW). The ids stay where they were rendered
-//            (the truth).
+//   SPLAT:   every pixel takes the disparity of its key's dot, and that dot's ids and
+//            incidence (what the pixel now measures is that dot's surface); pixels no
+//            accepted dot reaches become holes (cause WINDOW) and keep their own.
 // Lists keep the costly window test to the dots (about a fifth of the pixels): the list
 // order varies from run to run, what is computed for each entry does not.
 #if STEP == DOTS || STEP == SPLAT
@@ -26,6 +26,8 @@ layout(local_size_x = 64) in;
 #include "sensor.glsl"
 
 layout(std430, binding = 4) buffer Val2 { float val2[]; };
+layout(std430, binding = 6) buffer Ids2 { uint ids2[]; };
+layout(std430, binding = 7) buffer Inc2 { float inc2[]; };
 layout(std430, binding = 8) buffer DotVal { float dotval[]; };  // d on a dot, -1 elsewhere
 layout(std430, binding = 9) buffer Candidates { uint cand[]; };
 layout(std430, binding = 10) buffer Pattern { uint pattern[]; };  // (H, PW) 0/1
@@ -107,8 +109,11 @@ void main() {
     if (q.x >= size.x || q.y >= size.y) return;
     uint p = uint(q.y * size.x + q.x);
     uint k = keys[p];
+    uint src = k != 0u ? 0xFFFFFFu - (k & 0xFFFFFFu) : p;
+    ids2[p] = ids[src];
+    inc2[p] = inc[src];
     if (k != 0u) {
-        val2[p] = val[0xFFFFFFu - (k & 0xFFFFFFu)];
+        val2[p] = val[src];
         flags[p] |= VALID;
     } else {
         val2[p] = 0.0;
