@@ -222,3 +222,49 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     one_line_error(capsys, "forest", "train", store, "--out", str(every), *SMALL,
                    "--segmented", "--background-share", "0.5",
                    match="a --segmented forest sees no background")
+
+
+def test_a_stage_trained_without_the_floor_too_decides_where_none_is_found():
+    from vhgen.forest.from_stores import stage_rows
+
+    seg = Segmenter(min_pixels=50)
+    depth, labels, who = room(3)
+    called = (labels > 0).astype(np.uint8) * 4
+    cand = seg.candidates(depth, INTR)
+    assert cand.floor is not None  # the level camera sees the floor
+    with_floor = seg.describe(cand, depth, INTR, called)
+    np.testing.assert_array_equal(with_floor, seg.features(depth, INTR, called)[1])
+    bare = seg.describe(cand, depth, INTR, called, use_floor=False)
+    ok = ~np.isnan(with_floor).any(1)
+    col = {k: FEATURES.index(k) for k in ("has_floor", "top_m", "bottom_m", "height_m",
+                                          "body", "depth_m")}
+    assert (with_floor[ok, col["has_floor"]] == 1).all() and (bare[ok, col["has_floor"]] == 0).all()
+    np.testing.assert_array_equal(bare[ok, col["top_m"]], bare[ok, col["height_m"]])
+    assert (bare[ok, col["bottom_m"]] == 0).all()
+    for k in ("body", "depth_m"):  # what does not depend on the floor stays
+        np.testing.assert_array_equal(bare[ok, col[k]], with_floor[ok, col[k]])
+    # the training rows: each candidate twice with a floor found, once with the option off
+    x2, y2 = stage_rows(seg, depth, INTR, called, who)
+    x1, y1 = stage_rows(seg, depth, INTR, called, who, without_floor=False)
+    assert len(x2) == 2 * len(x1) == 2 * ok.sum() and y2.sum() == 2 * y1.sum() > 0
+    np.testing.assert_array_equal(x1, with_floor[ok])
+
+    # a stage that learned from both descriptions finds the people of new rooms whose
+    # floor was not found, and not their cabinets
+    def rows(seeds, without_floor):
+        xs, ys = [], []
+        for s in seeds:
+            d, lab, k = room(s)
+            noisy = ((np.random.default_rng(1000 + s).uniform(size=d.shape) < 0.3)
+                     & (d > 0)).astype(np.uint8) * 4
+            x, y = stage_rows(seg, d, INTR, noisy, k, without_floor)
+            xs.append(x)
+            ys.append(y)
+        return np.concatenate(xs), np.concatenate(ys)
+
+    stage = PersonStage.fit(*rows(range(30), True), FEATURES, trees=30, seed=0)
+    xt, yt = rows(range(100, 115), True)
+    floorless = xt[:, col["has_floor"]] == 0
+    assert floorless.sum() >= 20
+    p = stage.predict_proba(xt[floorless]) >= 0.5
+    assert p[yt[floorless]].mean() >= 0.9 and p[~yt[floorless]].mean() <= 0.1

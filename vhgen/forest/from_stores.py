@@ -131,13 +131,38 @@ def person_stage_frames(forest: Forest, stores: list[str], count: int,
     return [rest[i] for i in pick]
 
 
+def stage_rows(seg: Any, depth_mm: np.ndarray, intr: Any, labels: np.ndarray,
+               truth: np.ndarray, without_floor: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The person stage's training rows of one frame: the features of its candidates
+    (:meth:`Segmenter.describe` with the forest's ``labels``) and whether each is a person
+    (most of its pixels a person's in ``truth``). With ``without_floor``, a frame whose
+    floor was found gives each candidate twice, also described as if no floor had been
+    found: the stage then learns to decide without a floor from every kind of scene, not
+    only from the frames where none is found (in the recommended stores, only the real
+    recordings behind ``people_real``, where the floor finder found none in 40 of 40
+    frames, against 95-100% of the synthetic rooms)."""
+    cand = seg.candidates(depth_mm, intr)
+    n = cand.count + 1
+    size = np.bincount(cand.comp.reshape(-1), minlength=n)
+    person = np.bincount(cand.comp.reshape(-1), weights=(truth > 0).reshape(-1),
+                         minlength=n) >= 0.5 * size
+    xs, ys = [], []
+    for use in (True, False) if (cand.floor is not None and without_floor) else (True,):
+        x = seg.describe(cand, depth_mm, intr, labels, use_floor=use)
+        ok = ~np.isnan(x).any(1)
+        xs.append(x[ok])
+        ys.append(person[ok])
+    return np.concatenate(xs), np.concatenate(ys)
+
+
 def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
-                       trees: int = 50, seed: int = 0,
+                       trees: int = 50, seed: int = 0, without_floor: bool = True,
                        progress: Callable[[str], None] | None = None) -> PersonStage:
     """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
     forest did not train on, with the forest's labels, each a person when most of its
-    pixels are a person's in the store's labels."""
+    pixels are a person's in the store's labels; ``without_floor`` as in
+    :func:`stage_rows`."""
     from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Predictor
 
@@ -152,14 +177,10 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         depth, truth = read_frames(part)
         labels = predictor.predict(depth)
         for i, (path, _, _) in enumerate(part):
-            comp, x = seg.features(depth[i], infos[path].intrinsics, labels[i])
-            n = len(x)
-            size = np.bincount(comp.reshape(-1), minlength=n)
-            person = np.bincount(comp.reshape(-1), weights=(truth[i] > 0).reshape(-1),
-                                 minlength=n)
-            ok = ~np.isnan(x).any(1)
-            xs.append(x[ok])
-            ys.append(person[ok] >= 0.5 * size[ok])
+            x, y = stage_rows(seg, depth[i], infos[path].intrinsics, labels[i], truth[i],
+                              without_floor)
+            xs.append(x)
+            ys.append(y)
         if progress is not None:
             progress(f"person stage: candidates of {min(s + 16, len(chosen))}/{len(chosen)} "
                      "frames")

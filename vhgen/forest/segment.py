@@ -271,25 +271,36 @@ class Segmenter:
     def features(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
         """The candidates of a frame and what the person stage decides on: (H, W) int32
-        candidate ids (0 = none) and (n + 1, len(FEATURES)) float64 (row 0 and the rows of
-        candidates below ``min_pixels`` are NaN: never a person). Heights are above the
-        floor (without one: ``top_m`` is the candidate's height and ``bottom_m`` 0), widths
+        candidate ids (0 = none) and (n + 1, len(FEATURES)) float64, as :meth:`describe`
+        says."""
+        depth = np.asarray(depth_mm)
+        cand = self.candidates(depth, intr)
+        return cand.comp, self.describe(cand, depth, intr, labels)
+
+    def describe(self, cand: Candidates, depth_mm: np.ndarray, intr: Intrinsics,
+                 labels: np.ndarray, use_floor: bool = True) -> np.ndarray:
+        """What the person stage decides on, per candidate of ``cand``: (n + 1,
+        len(FEATURES)) float64 (row 0 and the rows of candidates below ``min_pixels`` are
+        NaN: never a person). Heights are above the floor (without one, or without
+        ``use_floor``: ``top_m`` is the candidate's height and ``bottom_m`` 0), widths
         are 5th-95th percentile spreads on the floor: overall, of the points within 0.2 m
         of the top (a head) and 0.2-0.5 m below it (shoulders); ``area_m2`` is the log of
         the surface seen; ``fill`` that surface over height times width; ``in_front`` the
         share of the outline whose outside is farther by a depth step or unmeasured;
-        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`."""
+        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`.
+        ``use_floor=False`` describes the candidates as a frame whose floor was not found
+        would (how the person stage learns to decide without one)."""
         from scipy import ndimage
 
         depth = np.asarray(depth_mm)
-        cand = self.candidates(depth, intr)
         comp, points = cand.comp, cand.points
         table = self.table_of(comp, cand.count, points, np.asarray(labels), cand.keep)
         out = np.full((cand.count + 1, len(FEATURES)), np.nan)
         valid = depth > 0
         h_img, w_img = depth.shape
-        on_floor = cand.floor is not None
-        up, off = ((cand.floor[:3], float(cand.floor[3])) if cand.floor is not None
+        floor = cand.floor if use_floor else None
+        on_floor = floor is not None
+        up, off = ((floor[:3], float(floor[3])) if floor is not None
                    else (np.array([0.0, -1.0, 0.0]), 0.0))
         basis = _plane_basis(up)
         pixel_m2 = 1.0 / (intr.fx * intr.fy)
@@ -323,7 +334,7 @@ class Segmenter:
                       float(ys.start == 0 or xs.start == 0 or ys.stop == h_img
                             or xs.stop == w_img),
                       table["body"][c], table["coherence"][c], float(table["parts"][c]))
-        return comp, out
+        return out
 
     def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
                stage: PersonStage | None = None) -> tuple[np.ndarray, np.ndarray]:
