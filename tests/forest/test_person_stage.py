@@ -230,7 +230,7 @@ def test_a_stage_trained_without_the_floor_too_decides_where_none_is_found():
     seg = Segmenter(min_pixels=50)
     depth, labels, who = room(3)
     called = (labels > 0).astype(np.uint8) * 4
-    cand = seg.candidates(depth, INTR)
+    cand = seg.candidates(depth, INTR, called)
     assert cand.floor is not None  # the level camera sees the floor
     with_floor = seg.describe(cand, depth, INTR, called)
     np.testing.assert_array_equal(with_floor, seg.features(depth, INTR, called)[1])

@@ -141,7 +141,7 @@ def stage_rows(seg: Any, depth_mm: np.ndarray, intr: Any, labels: np.ndarray,
     only from the frames where none is found (in the recommended stores, only the real
     recordings behind ``people_real``, where the floor finder found none in 40 of 40
     frames, against 95-100% of the synthetic rooms)."""
-    cand = seg.candidates(depth_mm, intr)
+    cand = seg.candidates(depth_mm, intr, labels)
     n = cand.count + 1
     size = np.bincount(cand.comp.reshape(-1), minlength=n)
     person = np.bincount(cand.comp.reshape(-1), weights=(truth > 0).reshape(-1),

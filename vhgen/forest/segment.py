@@ -16,8 +16,11 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    large table tops), unless most of its border is an occluding edge (what lies beyond
    it is farther by a depth step): people standing side by side at one distance put
    their coats' fronts on one plane too, but stand in front of the room, while a wall's
-   or a floor's borders are corners and the nearer things in front of them. The plane
-   most nearly level below the camera is the **floor**;
+   or a floor's borders are corners and the nearer things in front of them; and unless
+   the forest calls at least ``max_plane_body`` of its pixels a body part (a person's
+   flat front, a coat or a torso with the arms raised, is a plane a metre across too,
+   and the forest, trained to call walls and floors background, says whose it is). The
+   plane most nearly level below the camera is the **floor**;
 2. **clusters**: 4-connected components of the other valid pixels, two neighbours joined
    when their depths differ by less than ``jump_m`` at 1 m (times z, a step the sensor
    sees as a discontinuity);
@@ -103,6 +106,9 @@ class Segmenter:
     jump_m: float = 0.05  # at 1 m; grows as z
     min_patch_m: float = 1.0
     keep_occluders: bool = True  # a plane standing in front of the room is not background
+    # a plane the forest calls mostly a body part is a person's front, not background (the
+    # majority; None: the forest has no say in step 1)
+    max_plane_body: float | None = 0.5
     min_pixels: int = 300
     min_extent_m: float = 0.2
     max_extent_m: float = 2.4
@@ -134,15 +140,17 @@ class Segmenter:
         ``plane_tol_m`` times z^2 (z from 0.3 m on), at most ``plane_tol_max_m``."""
         return _depth_noise(z, self.plane_tol_m, near_m=0.3, most_m=self.plane_tol_max_m)
 
-    def planes(self, points: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    def planes(self, points: np.ndarray, valid: np.ndarray,
+               body: np.ndarray | None = None) -> np.ndarray:
         """(H, W) bool: pixels on the dominant planes' large patches (step 1)."""
-        return self.find_planes(points, valid)[0]
+        return self.find_planes(points, valid, body)[0]
 
-    def find_planes(self, points: np.ndarray, valid: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray | None]:
+    def find_planes(self, points: np.ndarray, valid: np.ndarray,
+                    body: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """Step 1: (H, W) bool of the background patches of the dominant planes, and the
         floor as (4,) float64 (unit normal pointing up, offset: height = p @ n - d), or
-        None when no plane is level enough below the camera."""
+        None when no plane is level enough below the camera. ``body``: (H, W) bool, the
+        pixels the forest calls a body part (None: the forest has no say)."""
         rng = np.random.default_rng(self.seed)
         on_plane = np.zeros(valid.shape, bool)
         left = valid.copy()
@@ -173,6 +181,9 @@ class Segmenter:
             if self.keep_occluders and _outline_share(mask, valid, points[..., 2],
                                                       self.jump_m, unmeasured=False) > 0.5:
                 continue  # it stands in front of what surrounds it: people, not a wall
+            if (body is not None and self.max_plane_body is not None
+                    and body[mask].mean() >= self.max_plane_body):
+                continue  # the forest calls it mostly a body part: a person's front
             # a background plane also takes its points that an earlier, kept plane held
             # (where a row of people's plane meets the floor)
             held = valid & ~on_plane & ~left & ~mask
@@ -213,13 +224,16 @@ class Segmenter:
         out[nodes] = comp + 1
         return out.reshape(h, w), int(n)
 
-    def candidates(self, depth_mm: np.ndarray, intr: Intrinsics) -> Candidates:
-        """Steps 1, 2 and 2b: the person candidates of a frame (no forest involved)."""
+    def candidates(self, depth_mm: np.ndarray, intr: Intrinsics,
+                   labels: np.ndarray | None = None) -> Candidates:
+        """Steps 1, 2 and 2b: the person candidates of a frame; the forest's ``labels``
+        (H, W) have a say only on which planes are background (None: none)."""
         depth = np.asarray(depth_mm)
         valid = depth > 0
         z = depth.astype(np.float64) / 1000.0
         points = backproject(intr, z)
-        background, floor = self.find_planes(points, valid)
+        body = None if labels is None else np.asarray(labels) > 0
+        background, floor = self.find_planes(points, valid, body)
         keep = valid & ~background
         comp, n = self.clusters(z, keep)
         if self.split:
@@ -234,7 +248,7 @@ class Segmenter:
         pixels, right and below, that have the same part: whole parts, not confetti),
         ``parts`` (parts with at least 5% of its body pixels) and ``extent_m``."""
         labels = np.asarray(labels)
-        cand = self.candidates(depth_mm, intr)
+        cand = self.candidates(depth_mm, intr, labels)
         return cand.comp, self.table_of(cand.comp, cand.count, cand.points, labels,
                                         cand.keep)
 
@@ -274,7 +288,7 @@ class Segmenter:
         candidate ids (0 = none) and (n + 1, len(FEATURES)) float64, as :meth:`describe`
         says."""
         depth = np.asarray(depth_mm)
-        cand = self.candidates(depth, intr)
+        cand = self.candidates(depth, intr, labels)
         return cand.comp, self.describe(cand, depth, intr, labels)
 
     def describe(self, cand: Candidates, depth_mm: np.ndarray, intr: Intrinsics,
