@@ -268,3 +268,84 @@ def test_a_stage_trained_without_the_floor_too_decides_where_none_is_found():
     assert floorless.sum() >= 20
     p = stage.predict_proba(xt[floorless]) >= 0.5
     assert p[yt[floorless]].mean() >= 0.9 and p[~yt[floorless]].mean() <= 0.1
+def test_segmented_share_sees_some_frames_segmented():
+    """--segmented-share: each frame, by its own seeded draw, is seen segmented (no
+    background depth, no background sample) or whole (background sampled at its share)."""
+    from vhgen.forest.features import BACKGROUND_MM
+    from vhgen.forest.train import ImageShard, TrainParams
+
+    frames = [room(s) for s in range(40)]
+    depth = np.stack([f[0] for f in frames])
+    labels = np.stack([f[1] for f in frames])
+    params = TrainParams(trees=1, depth=4, pixels_per_image=200, background_share=0.5,
+                         segmented_share=0.5, seed=2)
+    shard = ImageShard(depth, labels, range(40), params)
+    seg = shard.segmented
+    assert 10 < seg.sum() < 30  # about half
+    again = ImageShard(depth, labels, range(40), params)
+    np.testing.assert_array_equal(again.segmented, seg)  # seeded per frame
+    bg = (labels == 0) & (depth > 0)
+    assert (shard.depth[seg][bg[seg]] == BACKGROUND_MM).all()
+    assert (shard.depth[~seg][bg[~seg]] == depth[~seg][bg[~seg]]).all()
+    shard.start_tree(0, int(labels.max()) + 1)
+    on_bg = shard.s_lab == 0
+    assert on_bg.any() and not seg[shard.s_img[on_bg]].any()  # background of whole frames only
+    whole = ~seg[shard.s_img]
+    assert 0.4 < on_bg[whole].mean() < 0.6  # at the background share
+    assert not ImageShard(depth, labels, range(40), TrainParams(
+        segmented_share=0.0)).segmented.any()
+    # a store given in segmented_stores: every frame of it segmented, whatever the share
+    where = ["/a"] * 20 + ["/b"] * 20
+    forced = ImageShard(depth, labels, range(40), TrainParams(
+        segmented_share=0.5, seed=2, segmented_stores=("/b",)), where).segmented
+    assert forced[20:].all() and (forced[:20] == seg[:20]).all()
+    assert ImageShard(depth, labels, range(40), TrainParams(segmented=True)).segmented.all()
+
+
+def test_cli_one_forest_for_the_stage_and_the_parts(tmp_path, capsys):
+    """A forest trained with --segmented-share takes a person stage and labels the people
+    it finds as their parts (--parts with the same file)."""
+    from tests.forest.test_cli import one_line_error, run
+
+    store = rooms_store(tmp_path / "rooms.zarr", range(24))
+    forest = tmp_path / "f.npz"
+    code, out, err = run(capsys, "forest", "train", store, "--out", str(forest), *SMALL,
+                         "--max-frames", "8", "--background-share", "0.5",
+                         "--segmented-share", "0.5", "--person-frames", "16")
+    assert code == 0, err
+    f = Forest.load(forest)
+    assert f.person_stage is not None and f.meta["params"]["segmented_share"] == 0.5
+    test = rooms_store(tmp_path / "test.zarr", range(300, 306))
+    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment", "--parts",
+                         str(forest), "--json", str(tmp_path / "e.json"))
+    assert code == 0, err
+    res = json.loads((tmp_path / "e.json").read_text())
+    assert res["parts_on"] == "the true people alone"
+    assert res["people"]["overall"]["instance_recall"] > 0.5
+    # without --parts: the forest labels the people it finds itself, the same scores
+    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment",
+                         "--json", str(tmp_path / "s.json"))
+    assert code == 0, err
+    alone = json.loads((tmp_path / "s.json").read_text())
+    assert alone["mean_per_class"] == res["mean_per_class"]
+    assert alone["people"]["overall"] == res["people"]["overall"]
+    from PIL import Image
+
+    depth, _, _ = room(400)
+    png = tmp_path / "d.png"
+    Image.fromarray(depth).save(png)
+    code, out, err = run(capsys, "forest", "label", str(forest), str(png), "-o",
+                         str(tmp_path / "l.png"), "--segment", "--instances",
+                         str(tmp_path / "i.png"), "--fx", str(INTR.fx))
+    assert code == 0, err
+    lab = np.asarray(Image.open(tmp_path / "l.png"))
+    inst = np.asarray(Image.open(tmp_path / "i.png"))
+    assert inst.any() and ((lab > 0) == (inst > 0))[depth > 0].all()
+    one_line_error(capsys, "forest", "train", store, "--out", str(tmp_path / "x.npz"), *SMALL,
+                   "--segmented-share", "1.5", match="--segmented-share 1.5: must be in")
+    one_line_error(capsys, "forest", "train", store, "--out", str(tmp_path / "x.npz"), *SMALL,
+                   "--segmented", "--segmented-share", "0.5",
+                   match="--segmented sees every frame segmented")
+    one_line_error(capsys, "forest", "train", store, "--out", str(tmp_path / "x.npz"), *SMALL,
+                   "--segmented-share", "0.5", "--segmented-stores", str(test),
+                   match="test.zarr: not one of the training stores")

@@ -65,7 +65,18 @@ def _params(args: argparse.Namespace) -> Any:
                        max_offset=args.max_offset, threshold_range=args.threshold_range,
                        hist_budget_mb=args.hist_budget_mb,
                        background_share=args.background_share,
-                       segmented=args.segmented)
+                       segmented=args.segmented, segmented_share=args.segmented_share,
+                       segmented_stores=_segmented_stores(args))
+
+
+def _segmented_stores(args: argparse.Namespace) -> tuple[str, ...]:
+    given = {str(Path(s).resolve()) for s in args.stores}
+    out = []
+    for s in args.segmented_stores or ():
+        if str(Path(s).resolve()) not in given:
+            raise ForestError(f"--segmented-stores {s}: not one of the training stores")
+        out.append(str(Path(s).resolve()))
+    return tuple(out)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -118,7 +129,7 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
         if f.frame.intrinsics is not None:
             check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
     label = labeller(forest, args.segment, args.fx, args.min_body_fraction,
-                     load_parts(args.parts))
+                     load_parts(args.parts, forest, args.segment))
     res = evaluate_real(label, frames, out_dir=args.out, colors=forest.meta.get("label_colors"),
                         num_classes=forest.num_classes)
     res["segment"] = bool(args.segment)
@@ -143,7 +154,7 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
                           f"({len(names)} parts)")
     check_focal(forest, ref.fx, ref.path)
     mask, how = None, "forest labels > 0"
-    parts = load_parts(args.parts)
+    parts = load_parts(args.parts, forest, args.segment)
     if args.segment:
         lab = labeller(forest, True, None, args.min_body_fraction, parts)
         how = called_by(forest, args.min_body_fraction, parts)
@@ -212,14 +223,23 @@ def called_by(forest: Any, min_body_fraction: float | None, parts: Any = None) -
     return f"--segment ({how}{', parts by --parts' if parts is not None else ''})"
 
 
-def load_parts(path: str | None) -> Any:
-    """The ``--parts`` forest (trained --segmented), or None."""
+def labels_people(forest: Any) -> bool:
+    """Whether ``forest`` labels segmented people: trained --segmented, or with a
+    --segmented-share (one forest for the person stage and the parts)."""
+    pp = forest.meta.get("params", {})
+    return bool(pp.get("segmented") or pp.get("segmented_share", 0.0) > 0)
+
+
+def load_parts(path: str | None, forest: Any = None, segment: bool = False) -> Any:
+    """The ``--parts`` forest (trained --segmented), or None; without ``--parts``, with
+    ``--segment``, the ``forest`` itself when it was trained with a --segmented-share."""
     if path is None:
-        return None
+        return forest if segment and forest is not None and labels_people(forest) \
+            and not forest.meta.get("params", {}).get("segmented") else None
     from vhgen.forest.trees import Forest
 
     parts = Forest.load(path)
-    if not parts.meta.get("params", {}).get("segmented"):
+    if not labels_people(parts):
         raise ForestError(f"--parts {path}: not a --segmented forest (it labels the pixels "
                           "the person stage keeps; train it with forest train --segmented)")
     return parts
@@ -229,7 +249,8 @@ class Labeller:
     """frame -> labels (and person instances): the forest, then (``segment``) the
     segmentation stage of :mod:`vhgen.forest.segment` deciding with the forest's person
     stage, or with its vote at ``min_body_fraction``; with ``parts`` (a forest trained
-    --segmented) the people's parts are that forest's on the people alone."""
+    --segmented, or the forest itself when trained with a --segmented-share) the people's
+    parts are that forest's on the people alone."""
 
     def __init__(self, forest: Any, segment: bool, fx: float | None = None,
                  min_body_fraction: float | None = None, parts: Any = None):
@@ -240,7 +261,7 @@ class Labeller:
                               "segmentation stage finds)")
         self.forest, self.segment, self.fx = forest, segment, fx
         self.predictor = Predictor(forest)
-        self.parts = Predictor(parts) if parts is not None else None
+        self.parts = Predictor(parts, parts_only=True) if parts is not None else None
         self.seg = segmenter(min_body_fraction)
         self.stage = person_stage_of(forest, min_body_fraction)
 
@@ -281,7 +302,8 @@ def _cmd_label(args: argparse.Namespace) -> int:
     if args.instances and not args.segment:
         raise ConfigError(None, "--instances", "needs --segment (the people are the "
                           "segmentation stage's)")
-    lab = labeller(forest, args.segment, fx, args.min_body_fraction, load_parts(args.parts))
+    lab = labeller(forest, args.segment, fx, args.min_body_fraction,
+                   load_parts(args.parts, forest, args.segment))
     labels, inst = lab.people(frame.depth_mm, frame_intrinsics(frame, forest, fx))
     if args.instances:
         ipath = Path(args.instances)
@@ -395,6 +417,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="the parts of segmented people (Shotton's setting): every pixel "
                         "that is not a person reads as no measurement; label with it "
                         "through --segment --parts")
+    t.add_argument("--segmented-share", type=float, default=0.0,
+                   help="one forest for the person stage and the parts: this share of the "
+                        "frames is seen segmented, the rest whole (default 0)")
+    t.add_argument("--segmented-stores", nargs="+", metavar="STORE",
+                   help="training stores whose frames are always seen segmented (with "
+                        "--segmented-share: stores too crowded to learn the background from)")
     t.add_argument("--person-frames", type=A.int_range(0), default=0,
                    help="then train the segmentation stage's person stage on the candidates "
                         "of this many frames the forest did not train on (default 0: none; "

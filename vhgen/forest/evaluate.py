@@ -64,8 +64,9 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     under ``people`` the person scores of :mod:`vhgen.forest.persons` on ``person_mask``
     (default: the forest's labels > 0; ``called_by`` names it in the output). The part
     scores are the forest's own labels, or those of ``parts``; a forest trained
-    ``--segmented`` labels the true people alone (the depth of every other pixel
-    removed: Shotton et al.'s test of the parts of segmented people)."""
+    ``--segmented`` (or with a ``--segmented-share``) labels the true people alone (the
+    depth of every other pixel removed: Shotton et al.'s test of the parts of segmented
+    people)."""
     names = list(forest.meta["label_names"])
     by_path = {i.path: i for i in infos}
     people = PeopleScore(called_by=called_by)
@@ -73,8 +74,13 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     frames = select_frames(infos, max_frames, seed)
     pred_fn = Predictor(forest)
     part_forest = parts if parts is not None else forest
-    part_fn = Predictor(parts) if parts is not None else pred_fn
-    on_people = bool(part_forest.meta.get("params", {}).get("segmented"))
+    pp = part_forest.meta.get("params", {})
+    on_people = bool(pp.get("segmented") or pp.get("segmented_share", 0.0) > 0)
+    part_fn = pred_fn
+    if on_people:  # the parts of people: no background
+        part_fn = Predictor(part_forest, parts_only=True)
+    elif parts is not None:
+        part_fn = Predictor(parts)
     conf = np.zeros((c, c), np.int64)
     shown: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []
     show_ids = set(np.linspace(0, len(frames) - 1, min(sheet_frames, len(frames)))

@@ -40,7 +40,8 @@ class FrameShard(ImageShard):
             # one CPU per worker: do not let numba spread over every core of the node
             numba.set_num_threads(max(1, min(threads, numba.get_num_threads())))
         depth, labels = read_frames(frames)
-        super().__init__(depth, labels, [g for _, _, g in frames], params)
+        super().__init__(depth, labels, [g for _, _, g in frames], params,
+                         [str(Path(p).resolve()) for p, _, _ in frames])
 
 
 def training_meta(stores: list[str], frames: list[tuple[str, int, int]]) -> dict:

@@ -36,6 +36,7 @@ from vhgen.forest.trees import Forest
 log = logging.getLogger(__name__)
 
 _SAMPLE_STREAM = 0x5A3B1E
+_SEGMENT_STREAM = 0x5E6D
 _FEATURE_STREAM = 0xFEA7
 
 
@@ -62,6 +63,22 @@ class TrainParams:
     # (label 0) reads as no measurement (BACKGROUND_MM) and no sample is drawn there; such
     # a forest labels the pixels a person stage kept (vhgen.forest.segment), nothing else
     segmented: bool = False
+    # one forest for both stages: this share of the frames (each drawn by its own seeded
+    # stream) is seen segmented as above, the rest whole (with background_share); the
+    # person stage then reads its vote on whole frames and it labels segmented people
+    segmented_share: float = 0.0
+    # stores (resolved paths) whose frames are always seen segmented, whatever the share
+    segmented_stores: tuple[str, ...] = ()
+
+    def segmented_frame(self, global_id: int, store: str | None = None) -> bool:
+        """Whether frame ``global_id`` (of ``store``) is seen segmented."""
+        if self.segmented or self.segmented_share >= 1.0 or store in self.segmented_stores:
+            return True
+        if self.segmented_share <= 0.0:
+            return False
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, _SEGMENT_STREAM,
+                                                            int(global_id)]))
+        return bool(rng.random() < self.segmented_share)
 
     def check(self) -> None:
         """Raise ForestError naming the flag of the first bad value."""
@@ -80,6 +97,10 @@ class TrainParams:
         if not 0.0 <= self.background_share < 1.0:
             raise ForestError(f"--background-share {self.background_share}: must be in "
                               "[0, 1)")
+        if not 0.0 <= self.segmented_share <= 1.0:
+            raise ForestError(f"--segmented-share {self.segmented_share}: must be in [0, 1]")
+        if self.segmented and self.segmented_share > 0:
+            raise ForestError("--segmented-share: --segmented sees every frame segmented")
         if self.segmented and self.background_share > 0:
             raise ForestError(f"--background-share {self.background_share}: a --segmented "
                               "forest sees no background")
@@ -249,11 +270,14 @@ class ImageShard:
     """
 
     def __init__(self, depth: np.ndarray, labels: np.ndarray, global_ids: Sequence[int],
-                 params: TrainParams):
+                 params: TrainParams, stores: Sequence[str] | None = None):
         self.labels = np.ascontiguousarray(labels, dtype=np.uint8)
-        self.depth = prepare_depth(np.where(self.labels > 0, depth, 0) if params.segmented
-                                   else depth)
         self.ids = np.asarray(global_ids, dtype=np.int64)
+        where = stores if stores is not None else [None] * len(self.ids)
+        self.segmented = np.array([params.segmented_frame(g, s)
+                                   for g, s in zip(self.ids, where, strict=True)], bool)
+        self.depth = prepare_depth(np.where(self.segmented[:, None, None]
+                                            & (self.labels == 0), 0, depth))
         self.params = params
         self.num_classes = 0
 
@@ -266,7 +290,8 @@ class ImageShard:
             rng = np.random.default_rng(np.random.SeedSequence(
                 [p.seed, _SAMPLE_STREAM, tree, int(self.ids[m])]))
             flat, lab = sample_pixels(self.labels[m], self.depth[m] != BACKGROUND_MM,
-                                      p.pixels_per_image, rng, p.background_share)
+                                      p.pixels_per_image, rng,
+                                      0.0 if self.segmented[m] else p.background_share)
             imgs.append(np.full(len(flat), m, np.int32))
             ys.append((flat // w).astype(np.int32))
             xs.append((flat % w).astype(np.int32))

@@ -140,12 +140,18 @@ def _tree_labels(img, offsets, thresh, left, root, labels, out):
 
 
 class Predictor:
-    """Compiled per-pixel labelling with one forest (arrays prepared once)."""
+    """Compiled per-pixel labelling with one forest (arrays prepared once); ``parts_only``:
+    the parts of pixels known to be a person's (the leaves' background counts left out, as
+    for a forest trained --segmented, which has none)."""
 
-    def __init__(self, forest: Forest):
+    def __init__(self, forest: Forest, parts_only: bool = False):
         self.forest = forest
         self._sparse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # tree_labels
-        self._packed = pack_forest(forest.offsets, forest.thresh, forest.left, forest.counts,
+        counts = forest.counts
+        if parts_only and counts[:, 0].any():  # P(part | pixel of a person): no background
+            counts = counts.copy()
+            counts[:, 0] = 0
+        self._packed = pack_forest(forest.offsets, forest.thresh, forest.left, counts,
                                    forest.roots)
 
     def predict(self, depth: np.ndarray, prepared: bool = False) -> np.ndarray:
