@@ -148,6 +148,15 @@ def rooms_store(path, seeds) -> str:
                        np.stack([f[1] for f in frames]), fx=INTR.fx)
 
 
+def eval_json(capsys, tmp_path, name: str, *args: str) -> dict:
+    """``vhgen forest eval ARGS --json tmp_path/name``: its JSON (the command must succeed)."""
+    from tests.forest.test_cli import run
+
+    code, _, err = run(capsys, "forest", "eval", *args, "--json", str(tmp_path / name))
+    assert code == 0, err
+    return json.loads((tmp_path / name).read_text())
+
+
 def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     from tests.forest.test_cli import one_line_error, run
 
@@ -181,10 +190,8 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     assert p.meta["params"]["segmented"] and not p.counts[:, 0].any()  # no background seen
 
     test = rooms_store(tmp_path / "test.zarr", range(300, 306))
-    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment", "--parts",
-                         str(parts), "--json", str(tmp_path / "e.json"))
-    assert code == 0, err
-    res = json.loads((tmp_path / "e.json").read_text())
+    res = eval_json(capsys, tmp_path, "e.json", str(forest), test, "--segment", "--parts",
+                    str(parts))
     assert res["parts_on"] == "the true people alone"
     assert "person stage" in res["people"]["called"]
     assert res["mean_per_class"] > 0.9  # body and head of segmented people
@@ -316,17 +323,12 @@ def test_cli_one_forest_for_the_stage_and_the_parts(tmp_path, capsys):
     f = Forest.load(forest)
     assert f.person_stage is not None and f.meta["params"]["segmented_share"] == 0.5
     test = rooms_store(tmp_path / "test.zarr", range(300, 306))
-    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment", "--parts",
-                         str(forest), "--json", str(tmp_path / "e.json"))
-    assert code == 0, err
-    res = json.loads((tmp_path / "e.json").read_text())
+    res = eval_json(capsys, tmp_path, "e.json", str(forest), test, "--segment", "--parts",
+                    str(forest))
     assert res["parts_on"] == "the true people alone"
     assert res["people"]["overall"]["instance_recall"] > 0.5
     # without --parts: the forest labels the people it finds itself, the same scores
-    code, out, err = run(capsys, "forest", "eval", str(forest), test, "--segment",
-                         "--json", str(tmp_path / "s.json"))
-    assert code == 0, err
-    alone = json.loads((tmp_path / "s.json").read_text())
+    alone = eval_json(capsys, tmp_path, "s.json", str(forest), test, "--segment")
     assert alone["mean_per_class"] == res["mean_per_class"]
     assert alone["people"]["overall"] == res["people"]["overall"]
     from PIL import Image
