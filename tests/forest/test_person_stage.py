@@ -344,7 +344,8 @@ def test_cli_one_forest_for_the_stage_and_the_parts(tmp_path, capsys):
     inst = np.asarray(Image.open(tmp_path / "i.png"))
     assert inst.any() and ((lab > 0) == (inst > 0))[depth > 0].all()
     one_line_error(capsys, "forest", "train", store, "--out", str(tmp_path / "x.npz"), *SMALL,
-                   "--segmented-share", "1.5", match="--segmented-share 1.5: must be in")
+                   "--segmented-share", "1.5",
+                   match="--segmented-share 1.5: must be a number in [0, 1]")
     one_line_error(capsys, "forest", "train", store, "--out", str(tmp_path / "x.npz"), *SMALL,
                    "--segmented", "--segmented-share", "0.5",
                    match="--segmented sees every frame segmented")

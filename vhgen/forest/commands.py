@@ -417,10 +417,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="the parts of segmented people (Shotton's setting): every pixel "
                         "that is not a person reads as no measurement; label with it "
                         "through --segment --parts")
-    t.add_argument("--segmented-share", type=float, default=0.0,
+    t.add_argument("--segmented-share", type=A.float_range(0, 1), default=0.0,
                    help="one forest for the person stage and the parts: this share of the "
                         "frames is seen segmented, the rest whole (default 0)")
-    t.add_argument("--segmented-stores", nargs="+", metavar="STORE",
+    t.add_argument("--segmented-stores", nargs="+", metavar="STORE", type=A.text("store"),
                    help="training stores whose frames are always seen segmented (with "
                         "--segmented-share: stores too crowded to learn the background from)")
     t.add_argument("--person-frames", type=A.int_range(0), default=0,
