@@ -223,23 +223,16 @@ def called_by(forest: Any, min_body_fraction: float | None, parts: Any = None) -
     return f"--segment ({how}{', parts by --parts' if parts is not None else ''})"
 
 
-def labels_people(forest: Any) -> bool:
-    """Whether ``forest`` labels segmented people: trained --segmented, or with a
-    --segmented-share (one forest for the person stage and the parts)."""
-    pp = forest.meta.get("params", {})
-    return bool(pp.get("segmented") or pp.get("segmented_share", 0.0) > 0)
-
-
 def load_parts(path: str | None, forest: Any = None, segment: bool = False) -> Any:
     """The ``--parts`` forest (trained --segmented), or None; without ``--parts``, with
     ``--segment``, the ``forest`` itself when it was trained with a --segmented-share."""
     if path is None:
-        return forest if segment and forest is not None and labels_people(forest) \
-            and not forest.meta.get("params", {}).get("segmented") else None
+        one = forest is not None and forest.meta.get("params", {}).get("segmented_share", 0) > 0
+        return forest if segment and one else None
     from vhgen.forest.trees import Forest
 
     parts = Forest.load(path)
-    if not labels_people(parts):
+    if not parts.labels_people:
         raise ForestError(f"--parts {path}: not a --segmented forest (it labels the pixels "
                           "the person stage keeps; train it with forest train --segmented)")
     return parts

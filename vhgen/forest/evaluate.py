@@ -74,8 +74,7 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     frames = select_frames(infos, max_frames, seed)
     pred_fn = Predictor(forest)
     part_forest = parts if parts is not None else forest
-    pp = part_forest.meta.get("params", {})
-    on_people = bool(pp.get("segmented") or pp.get("segmented_share", 0.0) > 0)
+    on_people = part_forest.labels_people
     part_fn = pred_fn
     if on_people:  # the parts of people: no background
         part_fn = Predictor(part_forest, parts_only=True)

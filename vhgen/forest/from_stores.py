@@ -14,7 +14,7 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +25,10 @@ from vhgen.forest.data import check_compatible, read_frames, select_frames, stor
 from vhgen.forest.person_stage import PersonStage
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
 from vhgen.forest.trees import Forest
+
+if TYPE_CHECKING:
+    from vhgen.camera import Intrinsics
+    from vhgen.forest.segment import Segmenter
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +136,7 @@ def person_stage_frames(forest: Forest, stores: list[str], count: int,
     return [rest[i] for i in pick]
 
 
-def stage_rows(seg: Any, depth_mm: np.ndarray, intr: Any, labels: np.ndarray,
+def stage_rows(seg: Segmenter, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
                truth: np.ndarray, without_floor: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The person stage's training rows of one frame: the features of its candidates
     (:meth:`Segmenter.describe` with the forest's ``labels``) and whether each is a person
@@ -147,9 +151,10 @@ def stage_rows(seg: Any, depth_mm: np.ndarray, intr: Any, labels: np.ndarray,
     size = np.bincount(cand.comp.reshape(-1), minlength=n)
     person = np.bincount(cand.comp.reshape(-1), weights=(truth > 0).reshape(-1),
                          minlength=n) >= 0.5 * size
+    table = seg.table_of(cand.comp, cand.count, cand.points, labels, cand.keep)
     xs, ys = [], []
     for use in (True, False) if (cand.floor is not None and without_floor) else (True,):
-        x = seg.describe(cand, depth_mm, intr, labels, use_floor=use)
+        x = seg.describe(cand, depth_mm, intr, labels, use_floor=use, table=table)
         ok = ~np.isnan(x).any(1)
         xs.append(x[ok])
         ys.append(person[ok])

@@ -292,7 +292,8 @@ class Segmenter:
         return cand.comp, self.describe(cand, depth, intr, labels)
 
     def describe(self, cand: Candidates, depth_mm: np.ndarray, intr: Intrinsics,
-                 labels: np.ndarray, use_floor: bool = True) -> np.ndarray:
+                 labels: np.ndarray, use_floor: bool = True,
+                 table: dict[str, np.ndarray] | None = None) -> np.ndarray:
         """What the person stage decides on, per candidate of ``cand``: (n + 1,
         len(FEATURES)) float64 (row 0 and the rows of candidates below ``min_pixels`` are
         NaN: never a person). Heights are above the floor (without one, or without
@@ -303,12 +304,14 @@ class Segmenter:
         share of the outline whose outside is farther by a depth step or unmeasured;
         ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`.
         ``use_floor=False`` describes the candidates as a frame whose floor was not found
-        would (how the person stage learns to decide without one)."""
+        would (how the person stage learns to decide without one); ``table``: their
+        :meth:`table_of`, when already computed (it does not depend on the floor)."""
         from scipy import ndimage
 
         depth = np.asarray(depth_mm)
         comp, points = cand.comp, cand.points
-        table = self.table_of(comp, cand.count, points, np.asarray(labels), cand.keep)
+        if table is None:
+            table = self.table_of(comp, cand.count, points, np.asarray(labels), cand.keep)
         out = np.full((cand.count + 1, len(FEATURES)), np.nan)
         valid = depth > 0
         h_img, w_img = depth.shape

@@ -57,6 +57,13 @@ class Forest:
     def num_classes(self) -> int:
         return int(self.counts.shape[1])
 
+    @property
+    def labels_people(self) -> bool:
+        """Whether it labels segmented people: trained ``--segmented``, or with a
+        ``--segmented-share`` (one forest for the person stage and the parts)."""
+        pp = self.meta.get("params", {})
+        return bool(pp.get("segmented") or pp.get("segmented_share", 0.0) > 0)
+
     def tree_slice(self, t: int) -> slice:
         end = self.roots[t + 1] if t + 1 < len(self.roots) else len(self.left)
         return slice(int(self.roots[t]), int(end))
