@@ -36,10 +36,11 @@ def load_any_forest(path: str, fx: float | None = None) -> Any:
     if stage is not None:
         from vhgen.forest.segment import FEATURES
 
-        if stage.features != FEATURES:
-            _warn(f"{p}: its person stage reads other candidate features than this "
-                  f"version's ({len(stage.features)} against {len(FEATURES)}); --segment "
-                  "decides by the forest's vote (train the stage again: forest person-stage)")
+        unknown = [f for f in stage.features if f not in FEATURES]
+        if unknown:
+            _warn(f"{p}: its person stage reads candidate features this version does not "
+                  f"compute ({', '.join(unknown)}); --segment decides by the forest's vote "
+                  "(train the stage again: forest person-stage)")
             forest.person_stage = None
     return forest
 

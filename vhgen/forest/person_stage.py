@@ -71,23 +71,27 @@ class PersonStage:
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         """(N,) float64: the trees' mean person share; NaN rows get 0."""
         x = np.asarray(x, np.float64)
-        bad = np.isnan(x).any(1)
-        xs = np.where(np.isnan(x), 0.0, x)
-        total = np.zeros(len(x))
-        rows = np.arange(len(x))
-        for r in self.roots:
-            node = np.full(len(x), r)
-            while True:
-                f = self.feature[node]
-                inner = f >= 0
-                if not inner.any():
-                    break
-                ni = node[inner]
-                go_left = xs[rows[inner], f[inner]] < self.threshold[ni]
-                node[inner] = np.where(go_left, self.left[ni], self.right[ni])
-            total += self.prob[node]
-        out = total / len(self.roots)
-        out[bad] = 0.0
+        out = np.zeros(len(x))
+        good = np.flatnonzero(~np.isnan(x).any(1))
+        if len(good) == 0:
+            return out
+        xs = x[good]
+        # every tree at once, one level per step: (rows, trees) node ids
+        node = np.repeat(self.roots[None, :], len(xs), axis=0)
+        rows = np.arange(len(xs))[:, None]
+        while True:
+            f = self.feature[node]
+            inner = f >= 0
+            if not inner.any():
+                break
+            go_left = xs[rows, np.maximum(f, 0)] < self.threshold[node]
+            node = np.where(inner, np.where(go_left, self.left[node], self.right[node]),
+                            node)
+        prob = self.prob[node]
+        total = np.zeros(len(xs))
+        for t in range(prob.shape[1]):  # summed in tree order, as one tree at a time was
+            total += prob[:, t]
+        out[good] = total / len(self.roots)
         return out
 
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:

@@ -75,7 +75,14 @@ from vhgen.geom.planes import triples as _triples
 # what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
             "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
-            "in_front", "at_image_edge", "body", "coherence", "parts")
+            "in_front", "at_image_edge", "body", "coherence", "parts", "behind",
+            "column_height_m", "column_share")
+# what a person stage trained now reads: not ``at_image_edge``. No person of the training
+# stores touches the image's edge (0 of the 3,450 person rows of the recommended
+# stage's 480 frames: their scenes frame every person), so the trees could only learn
+# from it that a candidate at the edge is not a person, and a real camera cuts people
+# off at its edges (a person 1 m away fills the frame)
+STAGE_FEATURES = tuple(f for f in FEATURES if f != "at_image_edge")
 
 
 @dataclass(frozen=True)
@@ -112,6 +119,10 @@ class Segmenter:
     min_pixels: int = 300
     min_extent_m: float = 0.2
     max_extent_m: float = 2.4
+    # a candidate's column: the candidates whose centres on the floor lie within this of
+    # its own (PCL's HeadBasedSubclustering takes clusters 0.4 m apart on the floor for
+    # one person's): a person cut in pieces by someone in front stands in one place
+    column_m: float = 0.4
     split: bool = True  # step 2b; False: one candidate per cluster (the stage before)
     cell_m: float = 0.05
     min_head_m: float = 0.9
@@ -302,7 +313,13 @@ class Segmenter:
         of the top (a head) and 0.2-0.5 m below it (shoulders); ``area_m2`` is the log of
         the surface seen; ``fill`` that surface over height times width; ``in_front`` the
         share of the outline whose outside is farther by a depth step or unmeasured;
-        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`.
+        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`;
+        ``behind`` the share of the outline whose outside is nearer by a depth step
+        (something stands in front of it); ``column_height_m`` the height from the lowest
+        to the highest point of the candidates whose centres on the floor lie within
+        ``column_m`` of this one's (itself and smaller ones included), and
+        ``column_share`` its share of their pixels: a piece of a person seen past someone
+        in front is short, but its column is as tall as the person.
         ``use_floor=False`` describes the candidates as a frame whose floor was not found
         would (how the person stage learns to decide without one); ``table``: their
         :meth:`table_of`, when already computed (it does not depend on the floor)."""
@@ -322,6 +339,20 @@ class Segmenter:
         basis = _plane_basis(up)
         pixel_m2 = 1.0 / (intr.fx * intr.fy)
         z_img = points[..., 2]
+        n = cand.count + 1
+        flat = comp.reshape(-1)
+        inside = flat > 0
+        ids = flat[inside]
+        p_all = points.reshape(-1, 3)[inside]
+        h_all = p_all @ up - off
+        q_all = p_all @ basis.T
+        size = np.bincount(ids, minlength=n).astype(np.float64)
+        centre = np.stack([np.bincount(ids, weights=q_all[:, k], minlength=n)
+                           for k in range(2)], 1) / np.maximum(size, 1)[:, None]
+        top = np.full(n, -np.inf)
+        bottom = np.full(n, np.inf)
+        np.maximum.at(top, ids, h_all)
+        np.minimum.at(bottom, ids, h_all)
         for c, sl in enumerate(ndimage.find_objects(comp), start=1):
             if sl is None or table["pixels"][c] < self.min_pixels:
                 continue
@@ -350,7 +381,22 @@ class Segmenter:
                                      self.jump_m, unmeasured=True),
                       float(ys.start == 0 or xs.start == 0 or ys.stop == h_img
                             or xs.stop == w_img),
-                      table["body"][c], table["coherence"][c], float(table["parts"][c]))
+                      table["body"][c], table["coherence"][c], float(table["parts"][c]),
+                      _outline_share(comp[around] == c, valid[around], z_img[around],
+                                     self.jump_m, unmeasured=False, nearer=True),
+                      0.0, 0.0)  # the column's two, below
+            top[c], bottom[c] = hi, lo
+        # the column: every candidate whose centre on the floor is within column_m of
+        # this one's (the small ones by their extreme heights, the others by the 2nd and
+        # 98th percentiles above)
+        big = np.flatnonzero(~np.isnan(out[:, 0]))
+        if len(big):
+            d2 = ((centre[big][:, None, :] - centre[None, 1:, :]) ** 2).sum(-1)
+            near = d2 < self.column_m ** 2
+            tops = np.where(near, top[None, 1:], -np.inf).max(1)
+            bottoms = np.where(near, bottom[None, 1:], np.inf).min(1)
+            out[big, FEATURES.index("column_height_m")] = tops - bottoms
+            out[big, FEATURES.index("column_share")] = size[big] / (near * size[None, 1:]).sum(1)
         return out
 
     def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
@@ -361,11 +407,9 @@ class Segmenter:
         if stage is None:
             comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
             return comp, self.is_person(table)
-        if stage.features != FEATURES:
-            raise ValueError(f"person stage features {stage.features} are not this "
-                             f"version's {FEATURES}")
+        cols = feature_columns(stage.features)
         comp, x = self.features(depth_mm, intr, labels)
-        ok = stage.predict_proba(x) >= self.min_person_prob
+        ok = stage.predict_proba(x[:, cols]) >= self.min_person_prob
         ok[0] = False
         return comp, ok
 
@@ -498,8 +542,18 @@ class Segmenter:
         return out
 
 
+def feature_columns(names: tuple[str, ...]) -> list[int]:
+    """The columns of :data:`FEATURES` a person stage trained on ``names`` reads (a stage
+    of an older version reads fewer); ValueError naming a feature this version lacks."""
+    unknown = [f for f in names if f not in FEATURES]
+    if unknown:
+        raise ValueError(f"person stage features {unknown} are not this version's "
+                         f"{FEATURES}")
+    return [FEATURES.index(f) for f in names]
+
+
 def _outline_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray, jump_m: float,
-                   unmeasured: bool) -> float:
+                   unmeasured: bool, nearer: bool = False) -> float:
     """Of the 4-neighbour pairs across the border of ``mask``, the share whose outside
     pixel is farther by more than a depth step (``jump_m`` at 1 m, times z): high for
     something standing in front of a room (a row of people, a person), low for a wall or
@@ -512,8 +566,12 @@ def _outline_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray, jump_m: f
                                  (mask[:-1], mask[1:], z[:-1], z[1:], valid[:-1], valid[1:])):
         out_b = a & ~b & (vb | unmeasured)  # inside at a, outside at b
         out_a = b & ~a & (va | unmeasured)
-        far += int((out_b & (~vb | (zb - za > jump_m * za))).sum())
-        far += int((out_a & (~va | (za - zb > jump_m * zb))).sum())
+        if nearer:  # the outside pixel nearer by a step: something in front of it
+            far += int((out_b & vb & (za - zb > jump_m * zb)).sum())
+            far += int((out_a & va & (zb - za > jump_m * za)).sum())
+        else:
+            far += int((out_b & (~vb | (zb - za > jump_m * za))).sum())
+            far += int((out_a & (~va | (za - zb > jump_m * zb))).sum())
         total += int(out_b.sum() + out_a.sum())
     return far / total if total else 0.0
 
