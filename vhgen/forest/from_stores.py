@@ -184,9 +184,9 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
     forest did not train on, with the forest's labels, each a person when most of its
     pixels are a person's in the store's labels; ``without_floor`` as in
-    :func:`stage_rows`. ``trees``: 200, where the trees' mean no longer moves with the
-    seed as 50 trees' did (on the held-out people_test frames, people found 0.953-0.959
-    and pixel precision 0.957-0.961 over seeds 0-2 with 50 trees). ``cropped``: every
+    :func:`stage_rows`. ``trees``: 200: 50 trees' mean moved with their seed (on the
+    held-out people_test frames, people found 0.953-0.959 and pixel precision
+    0.957-0.961 over seeds 0-2), 200 trees' moves less. ``cropped``: every
     frame also gives the candidates of a :func:`cropped_view` of it (seeded by ``seed``
     and the frame's place in the selection), labelled by the forest on that view: the
     recommended scenes frame every person whole, and a real camera cuts off the people
