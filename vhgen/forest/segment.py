@@ -77,12 +77,6 @@ FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
             "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
             "in_front", "at_image_edge", "body", "coherence", "parts", "behind",
             "column_height_m", "column_share")
-# what a person stage trained now reads: not ``at_image_edge``. No person of the training
-# stores touches the image's edge (0 of the 3,450 person rows of the recommended
-# stage's 480 frames: their scenes frame every person), so the trees could only learn
-# from it that a candidate at the edge is not a person, and a real camera cuts people
-# off at its edges (a person 1 m away fills the frame)
-STAGE_FEATURES = tuple(f for f in FEATURES if f != "at_image_edge")
 
 
 @dataclass(frozen=True)
@@ -559,7 +553,9 @@ def _outline_share(mask: np.ndarray, valid: np.ndarray, z: np.ndarray, jump_m: f
     something standing in front of a room (a row of people, a person), low for a wall or
     a floor, whose borders are corners or nearer things in front of them. ``unmeasured``:
     an outside pixel without a measurement counts as farther; else such pairs do not
-    count at all."""
+    count at all. ``nearer``: the share whose outside pixel is nearer by a step instead
+    (something stands in front of the mask; pairs without a measurement outside never
+    count as nearer)."""
     far = total = 0
     for a, b, za, zb, va, vb in ((mask[:, :-1], mask[:, 1:], z[:, :-1], z[:, 1:],
                                   valid[:, :-1], valid[:, 1:]),
