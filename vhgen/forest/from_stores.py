@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+_CROP_STREAM = 0xC209  # the seed stream of the person stage's cropped views
+
 
 class FrameShard(ImageShard):
     """An ImageShard that reads its own frames (store path, frame, global id)."""
@@ -204,21 +206,16 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         part = chosen[s:s + 16]
         depth, truth = read_frames(part)
         labels = predictor.predict(depth)
-        views = []
-        for i, (path, _, _) in enumerate(part):
-            x, y = stage_rows(seg, depth[i], infos[path].intrinsics, labels[i], truth[i],
-                              without_floor)
-            xs.append(x)
-            ys.append(y)
-            if cropped:
-                rng = np.random.default_rng(np.random.SeedSequence([seed, 0xC209, s + i]))
-                views.append(cropped_view(depth[i], truth[i], rng))
-        if views:
-            vdepth = np.stack([d for d, _ in views])
-            vlabels = predictor.predict(vdepth)
+        views = [(depth, labels, truth)]
+        if cropped:
+            cut = [cropped_view(depth[i], truth[i], np.random.default_rng(
+                np.random.SeedSequence([seed, _CROP_STREAM, s + i]))) for i in range(len(part))]
+            vdepth = np.stack([d for d, _ in cut])
+            views.append((vdepth, predictor.predict(vdepth), np.stack([t for _, t in cut])))
+        for vd, vl, vt in views:
             for i, (path, _, _) in enumerate(part):
-                x, y = stage_rows(seg, vdepth[i], infos[path].intrinsics, vlabels[i],
-                                  views[i][1], without_floor)
+                x, y = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
+                                  without_floor)
                 xs.append(x)
                 ys.append(y)
         if progress is not None:
