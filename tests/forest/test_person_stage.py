@@ -461,3 +461,32 @@ def test_a_cropped_view_cuts_people_off_at_its_edges():
         np.testing.assert_array_equal(t[window], who[window])
     # a person's legs are out of view in some of the views, the floor in most
     assert any((t[who > 0] == 0).any() and (t > 0).any() for _, t in views)
+
+
+def test_at_image_edge_is_the_measured_frames_edge():
+    """A sensor leaves a border unmeasured, so a candidate cut off by the frame never
+    reaches the image's last pixel: ``at_image_edge`` is measured against the box of the
+    measured pixels. In a room whose 10 px border is unmeasured, a person in the middle is
+    not at the edge; the same person in a view cut off above their knees is."""
+    depth, labels, who = room(4)
+    seg = Segmenter(min_pixels=50)
+    edge = FEATURES.index("at_image_edge")
+    framed = depth.copy()
+    framed[:10], framed[-10:], framed[:, :10], framed[:, -10:] = 0, 0, 0, 0
+
+    def people_edges(d):
+        comp, x = seg.features(d, INTR, labels * (d > 0))
+        ids = [c for c in range(1, len(x)) if not np.isnan(x[c]).any()
+               and (who[comp == c] > 0).mean() > 0.9]
+        assert ids
+        return x[ids, edge]
+
+    assert (people_edges(framed) == 0).all()
+    cut = framed.copy()
+    cut[int(np.flatnonzero((who > 0).any(1)).max()) - 15:] = 0  # the bottom 15 rows of people
+    assert (people_edges(cut) == 1).all()
+    # every candidate reaching the first measured column (the floor's) is at the edge,
+    # though none reaches the image's own first column
+    comp, x = seg.features(framed, INTR, labels)
+    left = [c for c in range(1, len(x)) if not np.isnan(x[c]).any() and (comp[:, 10] == c).any()]
+    assert left and (x[left, edge] == 1).all() and not comp[:, 0].any()

@@ -117,6 +117,11 @@ class Segmenter:
     # its own (PCL's HeadBasedSubclustering takes clusters 0.4 m apart on the floor for
     # one person's): a person cut in pieces by someone in front stands in one place
     column_m: float = 0.4
+    # ``at_image_edge``: a candidate whose box comes within this of the box of the frame's
+    # measured pixels is cut off by the frame (sensors leave a border unmeasured:
+    # openni_525 measures rows 28-476 and columns 26-617 of 640 x 480, so the image's own
+    # border is never reached); 2 px for the holes along an outline
+    edge_px: int = 2
     split: bool = True  # step 2b; False: one candidate per cluster (the stage before)
     cell_m: float = 0.05
     min_head_m: float = 0.9
@@ -307,7 +312,9 @@ class Segmenter:
         of the top (a head) and 0.2-0.5 m below it (shoulders); ``area_m2`` is the log of
         the surface seen; ``fill`` that surface over height times width; ``in_front`` the
         share of the outline whose outside is farther by a depth step or unmeasured;
-        ``body``, ``coherence`` and ``parts`` are the forest's, as in :meth:`cluster_table`;
+        ``at_image_edge`` whether its box comes within ``edge_px`` of the box of the
+        frame's measured pixels (cut off by the frame); ``body``, ``coherence`` and
+        ``parts`` are the forest's, as in :meth:`cluster_table`;
         ``behind`` the share of the outline whose outside is nearer by a depth step
         (something stands in front of it); ``column_height_m`` the height from the lowest
         to the highest point of the candidates whose centres on the floor lie within
@@ -325,7 +332,9 @@ class Segmenter:
             table = self.table_of(comp, cand.count, points, np.asarray(labels), cand.keep)
         out = np.full((cand.count + 1, len(FEATURES)), np.nan)
         valid = depth > 0
-        h_img, w_img = depth.shape
+        rows, cols = np.flatnonzero(valid.any(1)), np.flatnonzero(valid.any(0))
+        seen = ((rows[0], rows[-1] + 1, cols[0], cols[-1] + 1) if len(rows)
+                else (0, depth.shape[0], 0, depth.shape[1]))
         floor = cand.floor if use_floor else None
         on_floor = floor is not None
         up, off = ((floor[:3], float(floor[3])) if floor is not None
@@ -373,8 +382,8 @@ class Segmenter:
                       area / max(height * width, 1e-6),
                       _outline_share(comp[around] == c, valid[around], z_img[around],
                                      self.jump_m, unmeasured=True),
-                      float(ys.start == 0 or xs.start == 0 or ys.stop == h_img
-                            or xs.stop == w_img),
+                      float(min(ys.start - seen[0], seen[1] - ys.stop, xs.start - seen[2],
+                                seen[3] - xs.stop) < self.edge_px),
                       table["body"][c], table["coherence"][c], float(table["parts"][c]),
                       _outline_share(comp[around] == c, valid[around], z_img[around],
                                      self.jump_m, unmeasured=False, nearer=True),
