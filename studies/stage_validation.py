@@ -1,12 +1,14 @@
 """The person stage on a validation split of its own training stores: frames that neither
 the forest nor its person stage trained on.
 
-    python studies/stage_validation.py FOREST.npz [FOREST.npz ...] [--val 320]
+    python studies/stage_validation.py FOREST.npz [FOREST.npz ...] [--val 320] [--after N]
 
 For each forest (with a person stage, ``forest person-stage``): the stage's stores, frame
 count N and seed from the forest's file; the validation frames are the next ``--val``
 frames of the stage's own seeded draw (``person_stage_frames`` with N + val frames, less
-its first N), so they are never the part forest's nor the stage's. Labels them with the
+its first N), so they are never the part forest's nor the stage's; ``--after N`` starts
+them after the draw's first N frames instead (at least the stage's own count), so that
+stages of different frame counts are scored on the same frames. Labels them with the
 forest, keeps the people the segmentation stage and the person stage keep (``--segment``)
 and prints the person scores of ``forest eval`` (found and pixel precision by distance
 and group size). Forests whose stages drew from the same stores, count and seed are
@@ -39,6 +41,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("forests", nargs="+")
     ap.add_argument("--val", type=int, default=320, help="validation frames (default 320)")
+    ap.add_argument("--after", type=int, default=0,
+                    help="start after this many frames of the draw (default: the stage's)")
     args = ap.parse_args()
     seg = Segmenter()
     for path in args.forests:
@@ -48,8 +52,11 @@ def main() -> None:
         if forest.person_stage is None or not meta:
             sys.exit(f"{path}: no person stage (forest person-stage adds one)")
         stores, n, seed = list(meta["stores"]), int(meta["frames"]), int(meta["seed"])
-        taken = set(person_stage_frames(forest, stores, n, seed))
-        val = [t for t in person_stage_frames(forest, stores, n + args.val, seed)
+        if args.after and args.after < n:
+            sys.exit(f"{path}: --after {args.after} is below the stage's {n} frames")
+        first = max(n, args.after)
+        taken = set(person_stage_frames(forest, stores, first, seed))
+        val = [t for t in person_stage_frames(forest, stores, first + args.val, seed)
                if t not in taken]
         pred = Predictor(forest)
         score = PeopleScore(called_by="segmentation + person stage")
@@ -66,7 +73,7 @@ def main() -> None:
                     score.add(frame_people(inst > 0, d, got["instances"][s + i]),
                               (store, int(frames[s + i])))
         print(f"{path}: {len(val)} validation frames of {len(stores)} stores "
-              f"(the stage's {n} frames, seed {seed}, left out), "
+              f"(the draw's first {first} frames, seed {seed}, left out; the stage took {n}), "
               f"{time.perf_counter() - t0:.0f} s")
         print(table(score.result()))
         print()
