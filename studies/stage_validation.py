@@ -54,7 +54,7 @@ def main() -> None:
         stores, n, seed = list(meta["stores"]), int(meta["frames"]), int(meta["seed"])
         if args.after and args.after < n:
             sys.exit(f"{path}: --after {args.after} is below the stage's {n} frames")
-        first = max(n, args.after)
+        first = args.after or n
         taken = set(person_stage_frames(forest, stores, first, seed))
         val = [t for t in person_stage_frames(forest, stores, first + args.val, seed)
                if t not in taken]
