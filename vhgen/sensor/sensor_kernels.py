@@ -132,9 +132,21 @@ def _cw_finish_row(yf, b, w, big, na, key, lo, hi, dacc, sacc, outf, okf,
             srcf[p0 + U(x)] = sacc[i]
 
 
+def correlation_window(d: np.ndarray, valid: np.ndarray, dots: np.ndarray, half: int,
+                       frac: float, inlier_px: float, splat_r: float,
+                       want_source: bool = False
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel :func:`_correlation_window` on C-ordered copies of the images (no
+    copy when they already are): numba compiles a kernel once per array layout, ~12 s
+    each on this machine, and a strided view or a transpose would be another layout."""
+    return _correlation_window(np.ascontiguousarray(d), np.ascontiguousarray(valid),
+                               np.ascontiguousarray(dots), half, frac, inlier_px, splat_r,
+                               want_source)
+
+
 @numba.njit(cache=True, nogil=True)
-def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r,
-                       want_source=False):  # pragma: no cover
+def _correlation_window(d, valid, dots, half, frac, inlier_px, splat_r,
+                        want_source=False):  # pragma: no cover
     """Dot-gated correlation-window filter (after BlenSor / ICL-NUIM / render_kinect).
 
     d : (H, W) float64 disparity (px); valid : (H, W) bool; dots : (H, W) bool, a dot of
@@ -169,9 +181,6 @@ def correlation_window(d, valid, dots, half, frac, inlier_px, splat_r,
     third of the time). Indices are unsigned so that numba emits no negative-index
     wraparound in the inner loops.
     """
-    d = np.ascontiguousarray(d)
-    valid = np.ascontiguousarray(valid)
-    dots = np.ascontiguousarray(dots)
     h, w = d.shape
     r = int(np.floor(splat_r))
     r2max = splat_r * splat_r
