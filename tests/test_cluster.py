@@ -194,8 +194,8 @@ def ray_head():
                "env": env}
     finally:
         os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=30)
+        try:  # `ray start --block` took the whole 30 s it was once given to exit on SIGTERM
+            proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
         time.sleep(1)

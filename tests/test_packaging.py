@@ -1,8 +1,9 @@
 """The wheel as a new user gets it: built from this repository, installed into a fresh
 virtualenv outside the clone, and run from an unrelated folder.
 
-Cost: about 1-1.5 min here (wheel build ~5 s, virtualenv + install of the dependencies
-from pip's cache ~45 s, an 8-frame job on one OSMesa worker ~15 s)."""
+Cost: about half a minute here (wheel build ~5 s, virtualenv + install of the dependencies
+by uv from its cache, which scripts/setup.sh filled, a few seconds; pip's resolver took
+~60 s; an 8-frame job on one OSMesa worker ~15 s)."""
 
 from __future__ import annotations
 
@@ -59,7 +60,12 @@ def test_installed_wheel_runs_the_default_job_elsewhere(wheel, tmp_path, asset_d
     work.mkdir()
     assert not str(tmp_path).startswith(str(REPO))
     _sh(["python3", "-m", "venv", str(venv)], cwd=work)
-    _sh([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)], cwd=work)
+    uv = Path(sys.executable).parent / "uv"  # scripts/setup.sh installs it in .venv
+    if uv.is_file():
+        _sh([str(uv), "pip", "install", "-q", "--python", str(venv / "bin" / "python"),
+             str(wheel)], cwd=work)
+    else:
+        _sh([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)], cwd=work)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
     env["VHGEN_ASSETS"] = str(asset_dir)
     where = _sh([str(venv / "bin" / "python"), "-c", "import vhgen.yamlio as y, vhgen; "

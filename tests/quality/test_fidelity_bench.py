@@ -11,14 +11,23 @@ from vhgen.sensor.sensor_config import SensorConfig
 F, B = 571.26, 0.075
 
 
-def test_bench_fidelity_quick(tmp_path):
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    """One quick run for both tests below: the structured-light reference, which every
+    row is measured against, takes seconds a frame, and a second run computed it again."""
     from vhgen.quality.fidelity_bench import bench_fidelity
 
-    res = bench_fidelity(tmp_path, quick=True, human=False,
-                         configs=("ideal", "kinect_v1_full"))
-    data = json.loads((tmp_path / "fidelity.json").read_text())
-    assert (tmp_path / "fidelity.png").stat().st_size > 10_000
-    assert "kinect_v1_full" in (tmp_path / "table.txt").read_text()
+    out = tmp_path_factory.mktemp("fidelity")
+    res = bench_fidelity(out, quick=True, human=False, backend="osmesa",
+                         configs=("ideal", "kinect_v1_full"), gl_sensor=True)
+    return out, res, json.loads((out / "fidelity.json").read_text())
+
+
+@pytest.mark.gl
+def test_bench_fidelity_quick(bench):
+    out, res, data = bench
+    assert (out / "fidelity.png").stat().st_size > 10_000
+    assert "kinect_v1_full" in (out / "table.txt").read_text()
     ideal = data["configs"]["ideal"]["summary"]
     full = data["configs"]["kinect_v1_full"]["summary"]
     ref = data["configs"][data["reference"]]["summary"]
@@ -32,12 +41,9 @@ def test_bench_fidelity_quick(tmp_path):
 
 
 @pytest.mark.gl
-def test_bench_fidelity_gl_rows_agree_with_the_cpu(tmp_path):
-    from vhgen.quality.fidelity_bench import bench_fidelity
-
-    res = bench_fidelity(tmp_path, quick=True, human=False, backend="osmesa",
-                         configs=("kinect_v1_full", "kinect_v1_reference"), gl_sensor=True)
-    cfgs = json.loads((tmp_path / "fidelity.json").read_text())["configs"]
+def test_bench_fidelity_gl_rows_agree_with_the_cpu(bench):
+    _, res, data = bench
+    cfgs = data["configs"]
     assert "kinect_v1_reference [gl]" not in cfgs  # structured light has no GL pass
     cpu, gl = cfgs["kinect_v1_full"]["summary"], cfgs["kinect_v1_full [gl]"]["summary"]
     assert abs(cpu["valid_iou"] - gl["valid_iou"]) < 0.01
