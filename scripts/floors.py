@@ -1,15 +1,17 @@
 """The floors check's Python side (run by ``scripts/check_floors.sh`` in each venv).
 
-  floors.py jobs OUT        run a person-only, a room and a real-background job into OUT
-                            with the vhgen of this interpreter, read each back with
-                            vhgen.dataset, open each manifest with this pyarrow
+  floors.py jobs OUT [NAME...]
+                            run a person-only, a room and a real-background job (and the
+                            person-only one on Ray) into OUT with the vhgen of this
+                            interpreter, read each back with vhgen.dataset, open each
+                            manifest with this pyarrow; NAMEs: only those of JOBS
   floors.py read STORE...   open each store's manifest.parquet with this pyarrow alone
                             (no vhgen: the reader a user's training code has)
   floors.py form1 SRC DST   copy store SRC to DST with its manifest in form 1 (before
                             issue 29), to check that vhgen reads it with this pyarrow
   floors.py vread STORE...  read stores with vhgen.dataset (any form)
-  floors.py same DIR1 DIR2  the stores of the same name in DIR1 and DIR2 hold the same
-                            arrays, bit for bit (the floors against the newest)
+  floors.py same DIR1 DIR2  every store of DIR2 holds the same arrays as the store of its
+                            name in DIR1, bit for bit (the floors against the newest)
 """
 
 from __future__ import annotations
@@ -71,9 +73,14 @@ def main(argv: list[str]) -> int:
     mode, args = argv[0], [Path(a) for a in argv[1:]]
     print(f"# {Path(sys.executable).parent.parent.name}: {versions()}", flush=True)
     if mode == "jobs":
-        out = args[0]
+        out, only = args[0], {str(a) for a in args[1:]}
+        if only - {name for name, _, _ in JOBS}:
+            print(f"FAIL: no such job: {sorted(only - {name for name, _, _ in JOBS})}")
+            return 2
         vhgen = Path(sys.executable).with_name("vhgen")
         for name, config, flags in JOBS:
+            if only and name not in only:
+                continue
             t0 = time.perf_counter()
             store = out / f"{name}.zarr"
             r = subprocess.run([str(vhgen), "-q", "generate", config, "--out", str(store),
@@ -95,8 +102,13 @@ def main(argv: list[str]) -> int:
         import zarr
 
         a_dir, b_dir = args
-        for a in sorted(a_dir.glob("*.zarr")):
-            ga, gb = (zarr.open_group(str(p), mode="r") for p in (a, b_dir / a.name))
+        stores = sorted(b_dir.glob("*.zarr"))  # every store of DIR2, each also in DIR1
+        if not stores or any(not (a_dir / b.name).is_dir() for b in stores):
+            print(f"FAIL: {b_dir} has no stores or one that {a_dir} lacks")
+            return 1
+        for b in stores:
+            a = a_dir / b.name
+            ga, gb = (zarr.open_group(str(p), mode="r") for p in (a, b))
             for name in ("depth", "labels", "raw", "instances", "classes"):
                 if name in ga and not np.array_equal(ga[name][:], gb[name][:]):
                     print(f"FAIL {a.name}: {name} differs between {a_dir} and {b_dir}")
