@@ -74,8 +74,9 @@ def main(argv: list[str]) -> int:
     print(f"# {Path(sys.executable).parent.parent.name}: {versions()}", flush=True)
     if mode == "jobs":
         out, only = args[0], {str(a) for a in args[1:]}
-        if only - {name for name, _, _ in JOBS}:
-            print(f"FAIL: no such job: {sorted(only - {name for name, _, _ in JOBS})}")
+        unknown = only - {name for name, _, _ in JOBS}
+        if unknown:
+            print(f"FAIL: no such job: {sorted(unknown)}")
             return 2
         vhgen = Path(sys.executable).with_name("vhgen")
         for name, config, flags in JOBS:
