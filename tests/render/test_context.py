@@ -8,6 +8,7 @@ import pytest
 from vhgen.errors import ConfigError, RenderError, VhgenError
 from vhgen.render.context import (
     EGLDevice,
+    _egl_context,
     choose_egl_device,
     create_gpu_context,
     is_software_renderer,
@@ -55,6 +56,40 @@ def test_refuses_mismatched_or_ambiguous_ordinals():
     for hidden in ("", "-1", "NoDevFiles"):
         with pytest.raises(RenderError, match="hides every GPU"):
             choose_egl_device([nvidia(0, 0)], hidden)
+
+
+class _Driver:
+    """moderngl as a driver that makes GL 4.3 contexts or none (3.3 at most)."""
+
+    def __init__(self, has_43: bool):
+        self.has_43 = has_43
+        self.asked: list[int | None] = []
+
+    def create_context(self, *, standalone, backend, device_index, require=None):
+        self.asked.append(require)
+        if require is not None and require > (430 if self.has_43 else 330):
+            raise ValueError(f"Requested OpenGL version {require}, got version 330")
+        return f"context {require or 330} on device {device_index}"
+
+
+def test_egl_context_asks_for_compute_shaders_then_settles():
+    # NVIDIA's EGL makes exactly the version asked for: 3.3 unless 4.3 is asked, which
+    # left the GL sensor refused on every NVIDIA GPU (issue 28's first H200 run)
+    gpu = _Driver(has_43=True)
+    assert _egl_context(gpu, 2) == "context 430 on device 2" and gpu.asked == [430]
+    old = _Driver(has_43=False)  # a driver without 4.3 still renders (3.3 core)
+    assert _egl_context(old, 0) == "context 330 on device 0" and old.asked == [430, None]
+
+
+@pytest.mark.gl
+def test_egl_context_here_has_compute_shaders():
+    from vhgen.render.context import create_context
+
+    ctx = create_context("egl")
+    try:  # Mesa's llvmpipe has 4.5: the GL sensor's 4.3 is there
+        assert ctx.version_code >= 430
+    finally:
+        ctx.release()
 
 
 def test_software_renderer_names():

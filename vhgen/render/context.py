@@ -103,7 +103,7 @@ class OSMesaContext:
 
 def create_context(backend: str = "egl", *, device_index: int = 0,
                    require_renderer: str | None = None):
-    """Create a headless moderngl context (GL 3.3 core or newer).
+    """Create a headless moderngl context (GL 3.3 core or newer; 4.3 where the driver has it).
 
     backend : ``"egl"`` or ``"osmesa"``.
     device_index : EGL device to use (counts EGL devices, not CUDA devices).
@@ -117,8 +117,7 @@ def create_context(backend: str = "egl", *, device_index: int = 0,
         raise RenderError(f"unknown GL backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     try:
         if backend == "egl":
-            ctx = moderngl.create_context(standalone=True, backend="egl",
-                                          device_index=device_index)
+            ctx = _egl_context(moderngl, device_index)
         else:
             ctx = moderngl.create_context(standalone=True, context=OSMesaContext())
     except RenderError:
@@ -135,6 +134,18 @@ def create_context(backend: str = "egl", *, device_index: int = 0,
         raise RenderError(f"GL_RENDERER is {renderer!r}, which lacks the required "
                           f"{require_renderer!r} (fallback to software rendering?)")
     return ctx
+
+
+def _egl_context(moderngl, device_index: int):
+    """An EGL context of GL 4.3 (compute shaders: the GL sensor) where the driver has it,
+    else whatever it gives (3.3 core at least). NVIDIA's EGL makes exactly the version
+    asked for (3.3 when none is), Mesa's the newest it has either way."""
+    try:
+        return moderngl.create_context(standalone=True, backend="egl",
+                                       device_index=device_index, require=430)
+    except Exception:  # noqa: BLE001  # no 4.3 here: the renderer alone needs 3.3
+        return moderngl.create_context(standalone=True, backend="egl",
+                                       device_index=device_index)
 
 
 # --- choosing the EGL device of a GPU worker -------------------------------------------
