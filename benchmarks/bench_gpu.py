@@ -20,7 +20,10 @@ macro-target cache built), unreported. Per row:
   the work of a worker's first shard that later ones reuse (its clutter library, 1-2 s);
 * GPU busy: ``nvidia-smi --query-gpu=utilization.gpu`` sampled every 0.5 s, mean and
   maximum over the samples taken during the dispatch (mean over the GPUs when there are
-  several); ``-`` without ``nvidia-smi``.
+  several); ``-`` without ``nvidia-smi``;
+* CPU busy: the share of the machine's CPU time (every core) not idle during the
+  dispatch, from ``/proc/stat`` read at the same samples; ``-`` where there is none. Near
+  100% with the GPU far from busy: the CPU work per frame sets the pace.
 
 Fewer shards than workers leave workers idle (a row says how many ran): on a GPU node use
 enough frames for several shards per worker, e.g. ``--frames 2400 --workers 4,8,16,32``
@@ -55,12 +58,12 @@ class GpuSampler:
     def __init__(self) -> None:
         self.available = shutil.which(SMI[0]) is not None
         self.samples: list[tuple[float, float]] = []
+        self.cpu: list[tuple[float, int, int]] = []  # time, busy and all jiffies
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
     def __enter__(self) -> GpuSampler:
-        if self.available:
-            self._thread.start()
+        self._thread.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -71,7 +74,10 @@ class GpuSampler:
     def _run(self) -> None:
         due = time.perf_counter()
         while not self._stop.is_set():
-            busy = query_utilization()
+            jiffies = cpu_jiffies()
+            if jiffies is not None:
+                self.cpu.append((time.perf_counter(), *jiffies))
+            busy = query_utilization() if self.available else None
             if busy is not None:
                 self.samples.append((time.perf_counter(), busy))
             due += SAMPLE_SECONDS
@@ -80,6 +86,26 @@ class GpuSampler:
     def between(self, t0: float, t1: float) -> list[float]:
         """The samples taken in [t0, t1]."""
         return [b for t, b in self.samples if t0 <= t <= t1]
+
+
+    def cpu_busy(self, t0: float, t1: float) -> float | None:
+        """The share of CPU time not idle between the first and last samples in [t0, t1]
+        (percent), or None with fewer than two."""
+        inside = [(busy, total) for t, busy, total in self.cpu if t0 <= t <= t1]
+        if len(inside) < 2 or inside[-1][1] <= inside[0][1]:
+            return None
+        return 100.0 * (inside[-1][0] - inside[0][0]) / (inside[-1][1] - inside[0][1])
+
+
+def cpu_jiffies() -> tuple[int, int] | None:
+    """(busy, all) CPU time of every core since boot from ``/proc/stat``, or None."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(v) for v in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+    return sum(fields) - idle, sum(fields)
 
 
 def query_utilization() -> float | None:
@@ -116,6 +142,7 @@ class Row:
     dispatch: float
     steady_fps: float
     gpu: list[float]
+    cpu: float | None
     renderers: list[str]
 
 
@@ -131,9 +158,10 @@ def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | Non
     # the dispatch window: run_job's clock starts just after t0
     t_end = t0 + s.seconds - s.tail_seconds
     gpu = sampler.between(t_end - s.render_seconds, t_end) if sampler else []
+    cpu = sampler.cpu_busy(t_end - s.render_seconds, t_end) if sampler else None
     steady = ran / s.steady_seconds_per_frame if s.steady_seconds_per_frame else 0.0
     return Row(workers, ran, s.frames, s.seconds, s.fixed_seconds, s.render_seconds, steady,
-               gpu, s.renderers)
+               gpu, cpu, s.renderers)
 
 
 def load_config(args: argparse.Namespace) -> JobConfig:
@@ -157,7 +185,8 @@ def load_config(args: argparse.Namespace) -> JobConfig:
 def print_table(rows: list[Row], gpu_available: bool) -> None:
     """The rows as a table (one line per job)."""
     print(f"{'workers':>7s} {'frames':>6s} {'wall s':>7s} {'fixed s':>7s} {'dispatch s':>10s} "
-          f"{'frames/s dispatch':>17s} {'frames/s steady':>15s} {'GPU busy % mean/max':>19s}")
+          f"{'frames/s dispatch':>17s} {'frames/s steady':>15s} {'GPU busy % mean/max':>19s} "
+          f"{'CPU busy %':>10s}")
     for r in rows:
         if r.gpu:
             busy = f"{sum(r.gpu) / len(r.gpu):.0f} / {max(r.gpu):.0f}"
@@ -165,7 +194,8 @@ def print_table(rows: list[Row], gpu_available: bool) -> None:
             busy = "no samples" if gpu_available else "-"
         ran = f"{r.workers}" if r.ran == r.workers else f"{r.workers} ({r.ran} ran)"
         print(f"{ran:>7s} {r.frames:6d} {r.wall:7.1f} {r.fixed:7.1f} {r.dispatch:10.2f} "
-              f"{r.frames / max(r.dispatch, 1e-9):17.1f} {r.steady_fps:15.1f} {busy:>19s}")
+              f"{r.frames / max(r.dispatch, 1e-9):17.1f} {r.steady_fps:15.1f} {busy:>19s} "
+              f"{'-' if r.cpu is None else f'{r.cpu:.0f}':>10s}")
 
 
 def _counts(text: str) -> list[int]:
