@@ -288,3 +288,29 @@ def test_dispatch_goes_on_while_a_replacement_sets_up(cfg, tmp_path):
     assert written[0] > max(written[1], written[2], written[3])
     rep = inspect_store(out)
     assert rep.ok, rep.defects
+
+
+@pytest.mark.gl
+def test_worker_takes_its_share_of_codec_threads(cfg, monkeypatch):
+    # zarr's codec pool has a thread per core in each process; a frame worker keeps its
+    # share of the cores (16 pools of 16 on a 16-core node cost 17% of its frames/s)
+    import zarr
+
+    from vhgen.pipeline.worker import FrameWorker
+    from vhgen.store.zarr_store import set_codec_threads
+
+    before = zarr.config.get("threading.max_workers")
+    cores = len(os.sched_getaffinity(0))
+    try:
+        monkeypatch.delenv("ZARR_THREADING__MAX_WORKERS", raising=False)
+        for workers, share in ((1, cores), (cores * 4, 1)):
+            w = FrameWorker(replace(cfg, num_workers=workers))
+            assert w.setup_error is None
+            assert zarr.config.get("threading.max_workers") == share
+            w.ctx.release()
+        zarr.config.set({"threading.max_workers": 3})  # as zarr reads the variable
+        monkeypatch.setenv("ZARR_THREADING__MAX_WORKERS", "3")  # the user's choice wins
+        set_codec_threads(1)
+        assert zarr.config.get("threading.max_workers") == 3
+    finally:
+        zarr.config.set({"threading.max_workers": before})

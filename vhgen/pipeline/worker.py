@@ -17,6 +17,7 @@ from vhgen.errors import VhgenError
 from vhgen.job_config import JobConfig
 from vhgen.pipeline.frames import FrameGenerator, ShardResult
 from vhgen.pipeline.job import Job
+from vhgen.store.zarr_store import set_codec_threads
 
 
 class FrameWorker:
@@ -41,6 +42,10 @@ class FrameWorker:
             # worker; the workers are the parallelism. Read when the first context is
             # created, so set here, in the worker's own process
             os.environ.setdefault("LP_NUM_THREADS", "1")
+            # and zarr's codec threads: this worker's share of the machine's cores
+            cores = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                     else os.cpu_count() or 1)
+            set_codec_threads(cores // max(cfg.num_workers, 1))
             # a GPU worker opens the EGL device Ray gave it; otherwise the config's backend
             self.ctx = worker_context(cfg, os.environ.get("CUDA_VISIBLE_DEVICES")) \
                 or create_context(cfg.backend)

@@ -119,6 +119,20 @@ def open_store(path: str | Path, mode: Literal["r", "r+"] = "r") -> Any:
     return zarr.open_group(str(path), mode=mode, zarr_format=3)
 
 
+def set_codec_threads(count: int) -> None:
+    """Compress (and decompress) with at most ``count`` threads in this process: zarr's
+    pool, made at its first use, has one per core otherwise, and a frame worker is one of
+    many processes on the machine: on a 16-core GPU node with 16 workers, a pool of 1
+    each gave 17% more frames/s than 16 pools of 16 (docs/performance.md). The bytes
+    written do not depend on it. ``ZARR_THREADING__MAX_WORKERS`` in the environment wins."""
+    import os
+
+    import zarr
+
+    if "ZARR_THREADING__MAX_WORKERS" not in os.environ:
+        zarr.config.set({"threading.max_workers": max(1, int(count))})
+
+
 def _writer(array: Any) -> Any:
     """The array with every chunk written, even one equal to the fill value: zarr's check
     for such chunks (to omit them) compared each 640x480 frame to a fresh fill-value array,
