@@ -4,6 +4,7 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
         [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
+        [--gl-calls N]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -24,6 +25,13 @@ macro-target cache built), unreported. Per row:
 * CPU busy: the share of the machine's CPU time (every core) not idle during the
   dispatch, from ``/proc/stat`` read at the same samples; ``-`` where there is none. Near
   100% with the GPU far from busy: the CPU work per frame sets the pace.
+
+``--gl-calls N`` instead times one worker's GL calls in this process: N frames of the
+config (after 16 unreported) rendered as a worker renders them (describe, draw, sensor,
+record; no store), then N more with every GL call of the frame path (each compute
+dispatch, by program; buffer reads, writes and clears; texture uploads; draws; read-backs;
+memory barriers) between two ``glFinish``, so each row is the call's own GPU and driver
+time. The first line gives ms per frame without and with the instrumentation.
 
 Fewer shards than workers leave workers idle (a row says how many ran): on a GPU node use
 enough frames for several shards per worker, e.g. ``--frames 2400 --workers 4,8,16,32``
@@ -198,6 +206,70 @@ def print_table(rows: list[Row], gpu_available: bool) -> None:
               f"{'-' if r.cpu is None else f'{r.cpu:.0f}':>10s}")
 
 
+def gl_calls(cfg: JobConfig, frames: int) -> None:
+    """Print where one worker's GL time goes (see the module docstring)."""
+    from collections import defaultdict
+    from collections.abc import Callable
+    from typing import Any
+
+    import moderngl
+
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.job import prepare_job
+
+    gen = FrameGenerator(prepare_job(cfg))
+    ctx = gen.ctx
+    plan = gen.job.plan.num_frames
+    for f in range(16):
+        gen.render_frame(f % plan)
+    t = time.perf_counter()
+    for f in range(16, 16 + frames):
+        gen.render_frame(f % plan)
+    plain = (time.perf_counter() - t) / frames
+    names = {id(prog): name.removesuffix(".comp") + ":" + str(dict(defs).get("STEP", ""))
+             for (name, defs), prog in getattr(gen.sensor, "_programs", {}).items()}
+    spent: dict[str, float] = defaultdict(float)
+    calls: dict[str, int] = defaultdict(int)
+
+    def wrap(cls: Any, method: str, label: Callable[[Any], str]) -> None:
+        original = getattr(cls, method)
+
+        def timed(obj: Any, *a: Any, **k: Any) -> Any:
+            ctx.finish()
+            t0 = time.perf_counter()
+            out = original(obj, *a, **k)
+            ctx.finish()
+            spent[label(obj)] += time.perf_counter() - t0
+            calls[label(obj)] += 1
+            return out
+
+        setattr(cls, method, timed)
+
+    wrap(moderngl.ComputeShader, "run", lambda p: "dispatch " + names.get(id(p), "?"))
+    wrap(moderngl.ComputeShader, "run_indirect", lambda p: "indirect " + names.get(id(p), "?"))
+    def buffer_label(method: str) -> Callable[[Any], str]:
+        return lambda b: f"buffer.{method} {b.size // 1024} kB"
+
+    for m in ("read", "clear", "write", "read_into"):
+        wrap(moderngl.Buffer, m, buffer_label(m))
+    wrap(moderngl.Texture, "write", lambda x: f"texture.write {x.width}x{x.height}")
+    wrap(moderngl.Framebuffer, "read_into", lambda _: "framebuffer.read_into")
+    wrap(moderngl.Framebuffer, "read", lambda _: "framebuffer.read")
+    wrap(moderngl.VertexArray, "render", lambda _: "draw")
+    wrap(moderngl.Context, "memory_barrier", lambda _: "memory_barrier")
+    t = time.perf_counter()
+    for f in range(16 + frames, 16 + 2 * frames):
+        gen.render_frame(f % plan)
+    timed_frame = (time.perf_counter() - t) / frames
+    gen.close()
+    print(f"GL renderer: {gen.renderer_info}; a frame (describe, draw, sensor, record): "
+          f"{1e3 * plain:.1f} ms, {1e3 * timed_frame:.1f} ms with every GL call finished")
+    print(f"{'ms/frame':>8s} {'calls/frame':>11s}  GL call")
+    for k, v in sorted(spent.items(), key=lambda kv: -kv[1]):
+        print(f"{1e3 * v / frames:8.3f} {calls[k] / frames:11.1f}  {k}")
+    print(f"{1e3 * sum(spent.values()) / frames:8.3f} {'':11s}  every GL call")
+
+
 def _counts(text: str) -> list[int]:
     try:
         counts = [int(v) for v in text.split(",")]
@@ -226,9 +298,14 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs of every worker count, interleaved")
     ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up job")
+    ap.add_argument("--gl-calls", type=int, metavar="N", default=0,
+                    help="time one worker's GL calls over N frames instead (no job)")
     args = ap.parse_args()
 
     cfg = load_config(args)
+    if args.gl_calls:
+        gl_calls(cfg, args.gl_calls)
+        return
     sampler_probe = shutil.which(SMI[0]) is not None
     print(f"vhgen whole job: config {cfg.name}, {args.frames} frames in shards of "
           f"{cfg.frames_per_shard}, sensor {cfg.sensor.name} ({cfg.sensor.backend}), backend "
