@@ -26,7 +26,7 @@ from vhgen.scene.geometry import MAX_SCENE_CLASSES
 from vhgen.scene.scene_config import SceneConfig, parse_scene
 from vhgen.sensor.sensor_config import SensorConfig, sensor_section
 from vhgen.store.zarr_store import ARRAYS, DEFAULT_ARRAYS, REQUIRED_ARRAYS
-from vhgen.yamlio import check_keys, find_config, load_yaml
+from vhgen.yamlio import check_keys, find_config, load_yaml, probability
 from vhgen.yamlio import number as _num
 from vhgen.yamlio import number_range as _range
 
@@ -63,6 +63,8 @@ class PosesConfig:
     frame_step: int = 10
     max_per_motion: int = 0  # 0 = no limit
     skip_first: int = 0  # e.g. 1 drops the converter's T-pose frame of cgspeed files
+    bend_share: float = 0.0  # poses.bend.share: the share of poses bent forward at the hips
+    bend_degrees: tuple[float, float] = (30.0, 100.0)  # poses.bend.degrees: how far
 
 
 @dataclass(frozen=True)
@@ -121,12 +123,21 @@ class JobConfig:
                 resolved.append(str(p if p.is_absolute() else (path.parent / p).resolve()))
 
         po = d.get("poses") or {}
-        check_keys(po, {"frame_step", "max_per_motion", "skip_first"}, set(), path, "poses.")
+        check_keys(po, {"frame_step", "max_per_motion", "skip_first", "bend"}, set(), path,
+                   "poses.")
+        bend = po.get("bend") or {}
+        if not isinstance(bend, dict):
+            raise ConfigError(path, "poses.bend", f"must be a mapping (share, degrees), got "
+                              f"{bend!r}")
+        check_keys(bend, {"share", "degrees"}, set(), path, "poses.bend.")
         poses = PosesConfig(_num(po, "frame_step", path, "poses.", lo=1, integer=True, default=10),
                             _num(po, "max_per_motion", path, "poses.", lo=0, integer=True,
                                  default=0) if "max_per_motion" in po else 0,
                             _num(po, "skip_first", path, "poses.", lo=0, integer=True,
-                                 default=0) if "skip_first" in po else 0)
+                                 default=0) if "skip_first" in po else 0,
+                            probability(bend.get("share", 0.0), path, "poses.bend.share"),
+                            _range(bend, "degrees", path, "poses.bend.",
+                                   PosesConfig.bend_degrees, lo=0, hi=120))
         av = d.get("avatars") or {}
         ad = ShapeSampler()
         check_keys(av, {"count", "scale", "gender", "age_years", "muscle", "weight", "height",

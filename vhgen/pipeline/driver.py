@@ -123,6 +123,10 @@ def config_attrs(cfg: JobConfig, scheme: LabelScheme) -> dict[str, Any]:
         "sensor": cfg.sensor.to_dict(),
         "depth_units": "millimetre (uint16), 0 = no measurement",
         "frames_per_shard": cfg.frames_per_shard,
+        # only where asked for: the attributes of every other config stay as they were
+        **({"poses_bend": {"share": cfg.poses.bend_share,
+                           "degrees": list(cfg.poses.bend_degrees)}}
+           if cfg.poses.bend_share > 0 else {}),
     }
 
 
@@ -167,8 +171,10 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
         job, bodies = prepared.result()
         plan, poses = job.plan, job.poses
         intr = cfg.sensor.intrinsics
+        bent = {} if poses.bend_deg is None else {"bent_poses": {
+            str(i): round(float(poses.bend_deg[i]), 3) for i in np.flatnonzero(poses.bend_deg)}}
         open_output(out, {**attrs, "rig_bones": job.rig_bones, "num_frames": plan.num_frames,
-                          "motions": poses.report}, plan.num_frames, resume,
+                          "motions": poses.report, **bent}, plan.num_frames, resume,
                     height=intr.height, width=intr.width,
                     frames_per_shard=cfg.frames_per_shard,
                     compression_level=cfg.compression_level,

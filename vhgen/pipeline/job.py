@@ -73,7 +73,7 @@ def prepare_job(cfg: JobConfig, *, max_frames: int | None = None,
     scheme = LabelScheme.load(cfg.labels)
     rmap = load_all_maps() if cfg.retarget == "auto" else RetargetMap.load(cfg.retarget)
     base = build_body(assets, scheme)
-    poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses)
+    poses = load_poses(cfg.motions, base.rig, rmap, cfg.poses, cfg.seed)
     plan = make_plan(cfg.seed, poses.num_poses, cfg.avatars, cfg.frames_per_shard)
     if max_frames is not None and max_frames < plan.num_frames:
         plan = _truncate(plan, max_frames)

@@ -16,6 +16,7 @@ import numpy as np
 from vhgen.body.mesh import Rig
 from vhgen.errors import VhgenError
 from vhgen.job_config import PosesConfig
+from vhgen.mocap.bend import bend_forward, choose_bends
 from vhgen.mocap.clips import ClipFailure, ClipReport, expand_motion_paths, load_clip
 from vhgen.mocap.posetable import read_pose_table
 from vhgen.mocap.retarget import RetargetMap, world_rotations
@@ -29,7 +30,9 @@ class PoseSet:
 
     rotations (P, B, 3, 3) world skinning rotations; roots (P, 3) root head positions with
     the clip grounded (its feet on y = 0); motion_id (P,) index into ``motion_files`` and
-    ``motion_sha1``; source_frame (P,) the frame of the motion file each pose came from.
+    ``motion_sha1``; source_frame (P,) the frame of the motion file each pose came from;
+    bend_deg (P,) how far each pose was turned forward at the hips (:mod:`vhgen.mocap.bend`;
+    0: as captured), None without ``poses.bend``.
     """
 
     rotations: np.ndarray
@@ -39,6 +42,7 @@ class PoseSet:
     motion_files: list[str]
     motion_sha1: list[str]
     report: list[dict[str, Any]] = field(default_factory=list)  # ClipReport.to_dict()
+    bend_deg: np.ndarray | None = None  # (P,) degrees each pose was turned (poses.bend)
 
     @property
     def num_poses(self) -> int:
@@ -51,8 +55,9 @@ class PoseSet:
 
 
 def load_poses(specs, rig: Rig, rmap: RetargetMap | list[RetargetMap],
-               cfg: PosesConfig) -> PoseSet:
-    """Read every motion, retarget onto ``rig`` and keep the selected frames.
+               cfg: PosesConfig, seed: int = 0) -> PoseSet:
+    """Read every motion, retarget onto ``rig`` and keep the selected frames; with
+    ``poses.bend``, bend a share of them forward (drawn from the job's ``seed``).
 
     ``rmap`` is one map, or a list of maps to pick from per file (dialect detection).
     """
@@ -99,5 +104,12 @@ def load_poses(specs, rig: Rig, rmap: RetargetMap | list[RetargetMap],
     if not files:
         errors = "; ".join(f"{e.file}: {e.error}" for e in report)
         raise VhgenError(f"no usable motion among {len(report)} file(s): {errors}")
-    return PoseSet(np.concatenate(rots), np.concatenate(roots), np.concatenate(mids),
-                   np.concatenate(frames), files, shas, [e.to_dict() for e in report])
+    rot, root = np.concatenate(rots), np.concatenate(roots)
+    bend = None
+    if cfg.bend_share > 0:
+        bend = choose_bends(len(rot), cfg.bend_share, cfg.bend_degrees, seed)
+        bent = np.flatnonzero(bend)
+        rot[bent], root[bent], bend[bent] = bend_forward(rig, rot[bent], root[bent],
+                                                         bend[bent])
+    return PoseSet(rot, root, np.concatenate(mids), np.concatenate(frames), files, shas,
+                   [e.to_dict() for e in report], bend)
