@@ -60,8 +60,10 @@ SAMPLE_SECONDS = 0.5
 
 
 class GpuSampler:
-    """``nvidia-smi``'s GPU utilisation (percent) every :data:`SAMPLE_SECONDS` in a thread,
-    with the time of each sample (``time.perf_counter``); no samples without nvidia-smi."""
+    """``nvidia-smi``'s GPU utilisation (percent) and ``/proc/stat``'s CPU time every
+    :data:`SAMPLE_SECONDS` in a thread, with the time of each sample
+    (``time.perf_counter``); no GPU samples without nvidia-smi, no CPU samples without
+    ``/proc/stat``."""
 
     def __init__(self) -> None:
         self.available = shutil.which(SMI[0]) is not None
@@ -94,7 +96,6 @@ class GpuSampler:
     def between(self, t0: float, t1: float) -> list[float]:
         """The samples taken in [t0, t1]."""
         return [b for t, b in self.samples if t0 <= t <= t1]
-
 
     def cpu_busy(self, t0: float, t1: float) -> float | None:
         """The share of CPU time not idle between the first and last samples in [t0, t1]

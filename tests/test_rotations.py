@@ -82,3 +82,21 @@ def test_geodesic_angle_stable_near_0_and_180():
     for deg in [0.0, 1e-7, 90.0, 179.9999, 180.0]:
         r = axis_rotation("Z", np.deg2rad(deg))
         assert abs(np.rad2deg(geodesic_angle(np.eye(3), r)) - deg) < 1e-6
+
+
+def test_axis_angle_matrix_agrees_with_the_coordinate_axes_and_is_a_rotation():
+    from vhgen.rotations import axis_angle_matrix, axis_rotation, geodesic_angle
+
+    angle = np.linspace(-3.0, 3.0, 13)
+    for name, axis in (("X", [1.0, 0, 0]), ("Y", [0, 1.0, 0]), ("Z", [0, 0, 1.0])):
+        np.testing.assert_allclose(axis_angle_matrix(np.tile(axis, (13, 1)), angle),
+                                   axis_rotation(name, angle), atol=1e-15)
+    rng = np.random.default_rng(3)
+    axis = rng.normal(size=(50, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = rng.uniform(0, np.pi, 50)
+    r = axis_angle_matrix(axis, angle)
+    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape),
+                               atol=1e-14)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", r, axis), axis, atol=1e-14)  # fixed
+    np.testing.assert_allclose(geodesic_angle(np.eye(3), r), angle, atol=1e-12)

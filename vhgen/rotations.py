@@ -29,6 +29,21 @@ def axis_rotation(axis: str, angle: np.ndarray) -> np.ndarray:
     return out
 
 
+def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices by ``angle`` (...) radians about unit vectors ``axis`` (..., 3).
+
+    Returns (..., 3, 3) float64 (Rodrigues' formula, written out)."""
+    axis = np.asarray(axis, dtype=np.float64)
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    angle = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    return np.stack([
+        np.stack([c + t * x * x, t * x * y - s * z, t * x * z + s * y], -1),
+        np.stack([t * x * y + s * z, c + t * y * y, t * y * z - s * x], -1),
+        np.stack([t * x * z - s * y, t * y * z + s * x, c + t * z * z], -1)], -2)
+
+
 def euler_to_matrix(angles: np.ndarray, order: str) -> np.ndarray:
     """Intrinsic Euler angles to matrices, BVH convention.
 

@@ -23,6 +23,7 @@ import numpy as np
 from vhgen.body.mesh import Rig
 from vhgen.body.skinning import posed_heads
 from vhgen.errors import VhgenError
+from vhgen.rotations import axis_angle_matrix
 
 #: bones whose subtrees keep their world rotations: the legs and the arms
 KEEP = ("LeftUpLeg", "RightUpLeg", "LeftArm", "RightArm")
@@ -44,17 +45,6 @@ def kept_bones(rig: Rig) -> np.ndarray:
     for b, parent in enumerate(rig.parents):  # parents before children
         keep[b] = rig.names[b] in KEEP or (parent >= 0 and keep[parent])
     return keep
-
-
-def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations by ``angle`` (N,) radians about unit ``axis`` (N, 3)."""
-    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
-    c, s = np.cos(angle), np.sin(angle)
-    t = 1.0 - c
-    return np.stack([
-        np.stack([c + t * x * x, t * x * y - s * z, t * x * z + s * y], -1),
-        np.stack([t * x * y + s * z, c + t * y * y, t * y * z - s * x], -1),
-        np.stack([t * x * z - s * y, t * y * z + s * x, c + t * z * z], -1)], -2)
 
 
 def bend_forward(rig: Rig, rotations: np.ndarray, roots: np.ndarray,
@@ -88,7 +78,7 @@ def bend_forward(rig: Rig, rotations: np.ndarray, roots: np.ndarray,
     # a cartwheel, lying down) stays as it is
     upright = level & (np.abs(lean) < np.deg2rad(UPRIGHT_DEG))
     turn = np.where((deg > 0) & upright, np.maximum(np.deg2rad(deg) - lean, 0.0), 0.0)
-    r = _axis_angle(left, turn)
+    r = axis_angle_matrix(left, turn)
     out = rot.copy()
     out[:, ~keep] = np.einsum("nij,nbjk->nbik", r, rot[:, ~keep])
     feet = [rig.index(n) for n in FEET]
