@@ -28,6 +28,7 @@ complete).
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -125,8 +126,6 @@ def set_codec_threads(count: int) -> None:
     many processes on the machine: on a 16-core GPU node with 16 workers, a pool of 1
     each gave 17% more frames/s than 16 pools of 16 (docs/performance.md). The bytes
     written do not depend on it. ``ZARR_THREADING__MAX_WORKERS`` in the environment wins."""
-    import os
-
     import zarr
 
     if "ZARR_THREADING__MAX_WORKERS" not in os.environ:
