@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -37,21 +38,37 @@ class Solid:
     normals: np.ndarray = field(init=False)  # (P, 2) unit edge normals
 
     def __post_init__(self) -> None:
+        # ufunc reductions, not the ndarray methods (p.mean(0) is this same sum over the
+        # same count): on a few corners their Python wrappers cost more than the arithmetic,
+        # and clutter placement makes a dozen solids a frame
         p = np.asarray(self.poly, np.float64)
-        c = p.mean(0)
+        c = np.add.reduce(p, 0) / len(p)
         d = p - c
         object.__setattr__(self, "poly", p)
         object.__setattr__(self, "centre", c)
-        object.__setattr__(self, "radius", float(np.sqrt((d * d).sum(1).max())))
-        object.__setattr__(self, "box", np.concatenate([p.min(0), p.max(0)]))
+        object.__setattr__(self, "radius", float(np.sqrt(np.maximum.reduce(
+            d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]))))
+        object.__setattr__(self, "box", np.concatenate([np.minimum.reduce(p, 0),
+                                                        np.maximum.reduce(p, 0)]))
         object.__setattr__(self, "normals", _normals(p))
 
 
 def disc_polygon(x: float, z: float, r: float, sides: int = DISC_SIDES) -> np.ndarray:
     """(sides, 2) the regular polygon circumscribed about the circle (it contains it)."""
-    a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
+    cos, sin = _unit_polygon(sides)
     rr = r / math.cos(math.pi / sides)
-    return np.column_stack([x + rr * np.cos(a), z + rr * np.sin(a)])
+    return np.column_stack([x + rr * cos, z + rr * sin])
+
+
+@lru_cache(maxsize=8)
+def _unit_polygon(sides: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cosines and sines (sides,) of a regular polygon's corner angles (read-only:
+    every disc shares them)."""
+    a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
+    cos, sin = np.cos(a), np.sin(a)
+    cos.setflags(write=False)
+    sin.setflags(write=False)
+    return cos, sin
 
 
 def disc_solid(x: float, z: float, r: float, y1: float = math.inf) -> Solid:
@@ -64,10 +81,14 @@ def rect(x0: float, x1: float, z0: float, z1: float) -> np.ndarray:
     return np.array([[x0, z0], [x1, z0], [x1, z1], [x0, z1]], np.float64)
 
 
+_FLIP = np.array([1.0, -1.0])  # an edge (x, z), swapped, to its normal (z, -x)
+_FLIP.setflags(write=False)
+
+
 def _normals(poly: np.ndarray) -> np.ndarray:
     """(..., P, 2) unit edge normals of polygons (..., P, 2) (degenerate edges: 0)."""
     e = np.concatenate([poly[..., 1:, :], poly[..., :1, :]], -2) - poly
-    n = e[..., ::-1] * np.array([1.0, -1.0])
+    n = e[..., ::-1] * _FLIP
     length = np.sqrt((n * n).sum(-1, keepdims=True))
     return n * np.where(length > 1e-12, 1.0 / np.maximum(length, 1e-12), 0.0)
 

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from vhgen.scene.clutter.items import ClutterShape, build, sample_params, variant
-from vhgen.scene.clutter.kinds import KINDS
+from vhgen.scene.clutter.kinds import KINDS, PLACEMENT_MODES
 from vhgen.scene.description import PlacedClutter
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import WALL_GAP_M, Disc
@@ -49,6 +50,17 @@ MIN_RANGE_M = 1.0  # nearest point of an item from the camera
 # cabinet) hides at most legs and hips, as props under TALL_PROP_M do
 HIDES_ABOVE_M = 1.5
 HIDES_FROM_M = 1.0
+
+# where each wall cell starts / ends and its middle, as fractions of the wall (C + 1,), (C,)
+_CELL_ENDS = np.arange(WALL_CELLS + 1) / WALL_CELLS
+_CELL_MIDS = (np.arange(WALL_CELLS) + 0.5) / WALL_CELLS
+_CELL_ENDS.setflags(write=False)
+_CELL_MIDS.setflags(write=False)
+# The hot loops' reductions as ufuncs: the arithmetic of the ndarray methods (x.min(1) is
+# _min(x, 1); x.mean(1) is _sum(x, 1) / n) without their Python wrappers, a few
+# microseconds a call and hundreds of calls a frame.
+_min, _max, _sum = np.minimum.reduce, np.maximum.reduce, np.add.reduce
+_any, _all = np.logical_or.reduce, np.logical_and.reduce
 
 
 @dataclass(frozen=True)
@@ -107,9 +119,19 @@ class ClutterLayout:
 def _rotate(yaw: np.ndarray, xz: np.ndarray) -> np.ndarray:
     """(K, P, 2): local floor points (P, 2) turned by each yaw (K,) (the convention of
     :func:`~vhgen.scene.placement.yaw_transform`)."""
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    return np.stack([c * xz[None, :, 0] + s * xz[None, :, 1],
-                     -s * xz[None, :, 0] + c * xz[None, :, 1]], -1)
+    return _turn(np.cos(yaw)[:, None], np.sin(yaw)[:, None], xz)
+
+
+def _turn(c: np.ndarray, s: np.ndarray, xz: np.ndarray,
+          origin: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_rotate` by the yaws of cosines ``c`` and sines ``s`` (K, 1), then moved
+    by ``origin`` (K, 2) if given."""
+    out = np.empty((len(c), len(xz), 2))
+    np.add(c * xz[:, 0], s * xz[:, 1], out=out[..., 0])
+    np.add(-s * xz[:, 0], c * xz[:, 1], out=out[..., 1])
+    if origin is not None:
+        out += origin[:, None, :]
+    return out
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -118,22 +140,24 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 
 class _Frame:
     """The frame's placement state: walls, where the camera looks, the obstacles as
-    padded arrays (grown as items are placed), and how much of each person the
-    obstacles placed so far already hide."""
+    padded arrays (filled in as items are placed: ``capacity`` is how many solids the
+    frame's items may add), and how much of each person the obstacles placed so far
+    already hide."""
 
     def __init__(self, room: Room, eye: np.ndarray, forward: np.ndarray, half_fov: float,
                  obstacles: list[Obstacle], people: list[Disc], tall_discs: list[Disc],
-                 min_visible: float):
+                 min_visible: float, capacity: int = 0):
         self.room, self.eye, self.half_fov = room, np.asarray(eye, np.float64), half_fov
         self.base = math.atan2(forward[0], forward[1])
         self.walls = wall_frames(room)
         self.min_visible = min_visible
+        self.wall_a = np.stack([w.a for w in self.walls])
+        self.wall_e = np.stack([w.e for w in self.walls])
+        self.wall_n = np.stack([w.n for w in self.walls])
         # wall cells whose middle the camera sees (or nearly: items at the edge of the view)
-        s = (np.arange(WALL_CELLS) + 0.5) / WALL_CELLS
         lengths = np.array([w.length for w in self.walls])
-        mids = (np.stack([w.a for w in self.walls])[:, None]
-                + (s[None, :, None] * lengths[:, None, None])
-                * np.stack([w.e for w in self.walls])[:, None])
+        mids = (self.wall_a[:, None]
+                + (_CELL_MIDS[None, :, None] * lengths[:, None, None]) * self.wall_e[:, None])
         d = mids - self.eye
         seen = np.abs(_wrap(np.arctan2(d[..., 0], d[..., 1]) - self.base)) <= half_fov + 0.15
         weight = seen * lengths[:, None]
@@ -141,40 +165,54 @@ class _Frame:
             weight = np.broadcast_to(lengths[:, None], seen.shape).copy()
         self.seen_weight = weight
         self.lengths = lengths
-        self.cells = np.arange(WALL_CELLS + 1) / WALL_CELLS * lengths[:, None]  # (4, C + 1)
-        self.wall_a = np.stack([w.a for w in self.walls])
-        self.wall_e = np.stack([w.e for w in self.walls])
-        self.wall_n = np.stack([w.n for w in self.walls])
+        self.cells = _CELL_ENDS * lengths[:, None]  # (4, C + 1)
         self.wall_yaw = np.array([w.yaw for w in self.walls])
         self.wall_sign = np.array([w.sign for w in self.walls])
+        # each wall's offset along its normal and along itself (wall_cdf's distances)
+        self.wall_off = (self.wall_n * self.wall_a).sum(1)
+        self.wall_start = (self.wall_e * self.wall_a).sum(1)
         # signed distance to each wall as one product: [x, z, 1] @ planes, (3, 4)
-        self.planes = np.vstack([self.wall_n.T, -(self.wall_n * self.wall_a).sum(1)])
-        self.polys = np.zeros((0, DISC_SIDES, 2))
-        self.normals = np.zeros((0, DISC_SIDES, 2))
-        self.boxes = np.zeros((0, 4))
-        self.heights = np.zeros((0, 2))
-        self.gaps = np.zeros(0)
+        self.planes = np.vstack([self.wall_n.T, -self.wall_off])
+        self.wall_flush = FLUSH_M * self.wall_n  # a wall item's origin off its wall
+        # the obstacles, rows 0 .. count - 1 of arrays sized for the frame's items
+        # (polys, normals, boxes, heights and gaps are views of those rows)
+        self.count = 0
+        self._rows(len(obstacles) + max(capacity, 1))
         self.add([o.solid for o in obstacles], [o.gap for o in obstacles])
         # people: sample bearings across each one's width, and what already hides them
         self.people = people
-        self.samples: list[np.ndarray] = []
-        self.dist: list[float] = []
-        self.covered: list[np.ndarray] = []
-        for t in people:
+        self.samples = np.zeros((len(people), 64))
+        self.dist = np.zeros(len(people))
+        self.covered = np.zeros((len(people), 64), bool)
+        for i, t in enumerate(people):
             dx, dz = t.x - self.eye[0], t.z - self.eye[1]
             tdist = math.hypot(dx, dz)
             half = math.asin(min(1.0, t.r / max(tdist, 1e-9)))
-            self.samples.append(math.atan2(dx, dz) + np.linspace(-half, half, 64))
-            self.dist.append(tdist)
-            self.covered.append(np.zeros(64, bool))
+            self.samples[i] = math.atan2(dx, dz) + np.linspace(-half, half, 64)
+            self.dist[i] = tdist
             for o in people + tall_discs:  # as placement.visible_fraction counts them
                 if o is not t:
                     ox, oz = o.x - self.eye[0], o.z - self.eye[1]
                     odist = math.hypot(ox, oz)
                     if odist < tdist:
                         oh = math.asin(min(1.0, o.r / max(odist, 1e-9)))
-                        rel = _wrap(self.samples[-1] - math.atan2(ox, oz))
-                        self.covered[-1] |= np.abs(rel) <= oh
+                        rel = _wrap(self.samples[i] - math.atan2(ox, oz))
+                        self.covered[i] |= np.abs(rel) <= oh
+
+    def _rows(self, n: int) -> None:
+        """Arrays for ``n`` obstacles in all (polys, normals, boxes, heights, gaps), the
+        rows so far copied over."""
+        m = self.count
+        rows = (np.zeros((n, DISC_SIDES, 2)), np.zeros((n, DISC_SIDES, 2)), np.zeros((n, 4)),
+                np.zeros((n, 2)), np.zeros(n))
+        for new, old in zip(rows, getattr(self, "_all_rows", ()), strict=False):
+            new[:m] = old[:m]
+        self._all_rows = rows
+        self._views()
+
+    def _views(self) -> None:
+        self.polys, self.normals, self.boxes, self.heights, self.gaps = (
+            a[:self.count] for a in self._all_rows)
 
     def wall_cdf(self, width: float, depth: float, y0: float, y1: float) -> np.ndarray | None:
         """(4 * C,) cumulative weights of the wall cells an item of ``width`` (along the
@@ -183,17 +221,16 @@ class _Frame:
         item's depth of that wall takes. None if there is none."""
         sel = (self.heights[:, 0] < y1) & (self.heights[:, 1] > y0)
         weight = self.seen_weight
-        if sel.any():
+        if _any(sel):
             p, g = self.polys[sel], self.gaps[sel]
-            off = (self.wall_n * self.wall_a).sum(1)
-            dist = np.einsum("mpd,kd->kmp", p, self.wall_n) - off[:, None, None]
+            dist = np.einsum("mpd,kd->kmp", p, self.wall_n) - self.wall_off[:, None, None]
             along = (np.einsum("mpd,kd->kmp", p, self.wall_e)
-                     - (self.wall_e * self.wall_a).sum(1)[:, None, None])
-            near = dist.min(2) < depth + g  # (4, M)
-            s0, s1 = along.min(2) - g, along.max(2) + g
+                     - self.wall_start[:, None, None])
+            near = _min(dist, 2) < depth + g  # (4, M)
+            s0, s1 = _min(along, 2) - g, _max(along, 2) + g
             lo, hi = self.cells[:, :-1] - width / 2, self.cells[:, 1:] + width / 2  # (4, C)
-            blocked = (near[:, None] & (s0[:, None] < hi[..., None])
-                       & (s1[:, None] > lo[..., None])).any(2)
+            blocked = _any(near[:, None] & (s0[:, None] < hi[..., None])
+                           & (s1[:, None] > lo[..., None]), 2)
             weight = weight * ~blocked
         total = weight.sum()
         return None if total <= 0 else np.cumsum(weight.ravel()) / total
@@ -201,55 +238,53 @@ class _Frame:
     def add(self, solids: list[Solid], gaps: list[float]) -> None:
         """Obstacles placed: padded to :data:`DISC_SIDES` corners (repeated corners give
         zero-length edges, which the separating-axis test ignores)."""
-        if not solids:
-            return
-        pad = np.stack([np.concatenate([s.poly, np.repeat(s.poly[-1:], DISC_SIDES - len(s.poly),
-                                                          0)]) for s in solids])
-        nrm = np.stack([np.concatenate([s.normals, np.zeros((DISC_SIDES - len(s.poly), 2))])
-                        for s in solids])
-        self.polys = np.concatenate([self.polys, pad])
-        self.normals = np.concatenate([self.normals, nrm])
-        self.boxes = np.concatenate([self.boxes, np.stack([s.box for s in solids])])
-        self.heights = np.concatenate([self.heights, [[s.y0, s.y1] for s in solids]])
-        self.gaps = np.concatenate([self.gaps, gaps])
+        m = self.count
+        if m + len(solids) > len(self._all_rows[0]):
+            self._rows(2 * (m + len(solids)))
+        polys, normals, boxes, heights, all_gaps = self._all_rows
+        for j, (s, gap) in enumerate(zip(solids, gaps, strict=True), m):
+            p = len(s.poly)
+            polys[j, :p] = s.poly
+            polys[j, p:] = s.poly[-1]
+            normals[j, :p] = s.normals  # the padding's normals stay zero
+            boxes[j] = s.box
+            heights[j] = s.y0, s.y1
+            all_gaps[j] = gap
+        self.count = m + len(solids)
+        self._views()
 
-    def _cover(self, i: int, poly: np.ndarray) -> None:
-        """Mark person i's bearings hidden by ``poly`` if it is nearer than them."""
-        if _distance(self.eye, poly[None])[0] >= self.dist[i]:
-            return
-        d = poly - self.eye
-        mid = math.atan2(*d.mean(0))
-        a = _wrap(np.arctan2(d[:, 0], d[:, 1]) - mid)
-        rel = _wrap(self.samples[i] - mid)
-        self.covered[i] |= (rel >= a.min()) & (rel <= a.max())
+    def hide(self, polys: list[np.ndarray], ranges: list[float]) -> None:
+        """Tall footprints placed, their nearest points ``ranges`` from the camera: they
+        hide, from now on, the people they are nearer than (the bearings within their
+        angular span)."""
+        for poly, near in zip(polys, ranges, strict=True):
+            closer = near < self.dist
+            if not _any(closer):
+                continue
+            d = poly - self.eye
+            mid = math.atan2(*(_sum(d, 0) / len(d)))
+            a = _wrap(np.arctan2(d[:, 0], d[:, 1]) - mid)
+            rel = _wrap(self.samples[closer] - mid)
+            self.covered[closer] |= (rel >= _min(a)) & (rel <= _max(a))
 
-    def hide(self, polys: list[np.ndarray]) -> None:
-        """Tall footprints placed: they hide people from now on."""
-        for p in polys:
-            for i in range(len(self.people)):
-                self._cover(i, p)
-
-    def visible(self, polys: list[np.ndarray]) -> np.ndarray:
+    def visible(self, polys: list[np.ndarray], ranges: list[np.ndarray]) -> np.ndarray:
         """(K,) bool: every person keeps ``min_visible`` of its width past what hides it
-        already and candidate k's tall footprints polys[j][k] (K, P, 2) for every j."""
+        already and candidate k's tall footprints polys[j][k] (K, P, 2) for every j, their
+        nearest points ranges[j][k] from the camera."""
         k = len(polys[0])
-        ok = np.ones(k, bool)
-        if not k:
-            return ok
-        spans = []
-        for p in polys:
+        if not k or not len(self.people):
+            return np.ones(k, bool)
+        cover = np.repeat(self.covered[:, None], k, 1)  # (people, K, 64)
+        for p, near in zip(polys, ranges, strict=True):
             d = p - self.eye
-            mid = np.arctan2(d[..., 0].mean(1), d[..., 1].mean(1))
+            n = d.shape[1]
+            mid = np.arctan2(_sum(d[..., 0], 1) / n, _sum(d[..., 1], 1) / n)
             a = _wrap(np.arctan2(d[..., 0], d[..., 1]) - mid[:, None])
-            spans.append((_distance(self.eye, p), mid, a.min(1), a.max(1)))
-        for i in range(len(self.people)):
-            cover = np.broadcast_to(self.covered[i], (k, 64)).copy()
-            for near, mid, lo, hi in spans:
-                rel = _wrap(self.samples[i][None] - mid[:, None])  # (K, 64)
-                cover |= ((rel >= lo[:, None]) & (rel <= hi[:, None])
-                          & (near < self.dist[i])[:, None])
-            ok &= 1.0 - cover.mean(1) >= self.min_visible
-        return ok
+            nearer = near[None] < self.dist[:, None]  # (people, K)
+            rel = _wrap(self.samples[:, None] - mid[:, None])  # (people, K, 64)
+            cover |= ((rel >= _min(a, 1)[:, None]) & (rel <= _max(a, 1)[:, None])
+                      & nearer[..., None])
+        return _all(1.0 - cover.mean(2) >= self.min_visible, 0)
 
 
 def _distance(eye: np.ndarray, polys: np.ndarray) -> np.ndarray:
@@ -258,11 +293,14 @@ def _distance(eye: np.ndarray, polys: np.ndarray) -> np.ndarray:
     b = np.concatenate([polys[:, 1:], polys[:, :1]], 1)
     ab = b - a
     ea = eye - a
-    t = np.clip((ea * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-18), 0.0, 1.0)
+    # the products' sums over x and z written out: the same two-term sums as .sum(-1)
+    abx, abz, eax, eaz = ab[..., 0], ab[..., 1], ea[..., 0], ea[..., 1]
+    t = np.clip((eax * abx + eaz * abz) / np.maximum(abx * abx + abz * abz, 1e-18), 0.0, 1.0)
     q = a + t[..., None] * ab - eye
-    d = np.sqrt((q * q).sum(-1)).min(1)
-    cross = ab[..., 0] * ea[..., 1] - ab[..., 1] * ea[..., 0]
-    inside = (cross >= 0).all(1) | (cross <= 0).all(1)
+    qx, qz = q[..., 0], q[..., 1]
+    d = _min(np.sqrt(qx * qx + qz * qz), 1)
+    cross = abx * eaz - abz * eax
+    inside = _all(cross >= 0, 1) | _all(cross <= 0, 1)
     return np.where(inside, 0.0, d)
 
 
@@ -272,31 +310,33 @@ def _candidates(rng: np.random.Generator, shape: ClutterShape, fr: _Frame
     kind's modes, wall (K,) (-1 on the floor), and whether each is possible (K,). Wall
     spots are drawn where the camera looks; corners at the end of the wall nearer to a
     drawn spot; floor spots in the camera's view."""
-    modes = KINDS[shape.kind].modes
     u = rng.uniform(size=(CANDIDATES, 5))
-    mode_cdf, mode_names = _MODE_CDF[shape.kind]
-    mode = np.minimum(np.searchsorted(mode_cdf, u[:, 0], side="right"), len(modes) - 1)
-    names = mode_names[mode]
+    mode_cdf, mode_places = _MODE_CDF[shape.kind]
+    mode = np.minimum(np.searchsorted(mode_cdf, u[:, 0], side="right"), len(mode_cdf) - 1)
+    place = mode_places[mode]
     x0, x1 = shape.x_extent
     cdf = fr.wall_cdf(x1 - x0, float(shape.inner_box[1, 1]), *shape.inner_heights)
     if cdf is None:  # no free wall in view: only floor spots can work
         cdf = np.cumsum(fr.seen_weight.ravel()) / fr.seen_weight.sum()
-        names = np.where(names == "floor", names, "none")
+        place = np.where(place == _FLOOR, place, _NOWHERE)
     cell = np.minimum(np.searchsorted(cdf, u[:, 1], side="right"), 4 * WALL_CELLS - 1)
-    wall = cell // WALL_CELLS
+    wall, cell = np.divmod(cell, WALL_CELLS)
     length = fr.lengths[wall]
-    spot = ((cell % WALL_CELLS) + u[:, 2]) / WALL_CELLS * length
+    spot = (cell + u[:, 2]) / WALL_CELLS * length
     sign = fr.wall_sign[wall]
-    lo_off, hi_off = np.minimum(sign * x0, sign * x1), np.maximum(sign * x0, sign * x1)
+    off0, off1 = sign * x0, sign * x1
+    lo_off, hi_off = np.minimum(off0, off1), np.maximum(off0, off1)
     s_lo = CORNER_GAP_M - lo_off
     s_hi = length - CORNER_GAP_M - hi_off
     # the item's middle on the spot, moved along the wall to fit
     s = np.clip(spot - (lo_off + hi_off) / 2, s_lo, s_hi)
-    s = np.where(names == "corner", np.where(spot < length / 2, s_lo, s_hi), s)
+    corner = place == _CORNER
+    if _any(corner):
+        s = np.where(corner, np.where(spot < length / 2, s_lo, s_hi), s)
     yaw = fr.wall_yaw[wall]
-    origin = fr.wall_a[wall] + s[:, None] * fr.wall_e[wall] + FLUSH_M * fr.wall_n[wall]
-    ok = (s_hi >= s_lo) & (names != "none")
-    on_floor = names == "floor"
+    origin = fr.wall_a[wall] + s[:, None] * fr.wall_e[wall] + fr.wall_flush[wall]
+    ok = (s_hi >= s_lo) & (place != _NOWHERE)
+    on_floor = place == _FLOOR
     if on_floor.any():
         dist = MIN_RANGE_M + u[:, 3] * (FLOOR_REACH_M - MIN_RANGE_M)
         bearing = fr.base + (2 * u[:, 2] - 1) * fr.half_fov
@@ -324,12 +364,9 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     """
     cfg = sc.clutter
     assert cfg is not None
-    fr = _Frame(room, eye, forward, half_fov, obstacles, people, tall_discs,
-                sc.min_visible_fraction)
     n_items = int(rng.integers(cfg.count[0], cfg.count[1] + 1))
     weights = np.array(cfg.weights, np.float64)
-    repeat = np.array([KINDS[k].repeat for k in cfg.kinds])
-    same = np.array([[a == b for b in cfg.kinds] for a in cfg.kinds])
+    repeat, same = _repeats(cfg.kinds)
     roles = sc.clutter_roles
     items: list[PlacedClutter] = []
     meshes: list[StaticMesh] = []
@@ -350,6 +387,8 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
         drawn.append((pick, shape))
     # the largest footprints first, as furniture comes before the things between it
     drawn.sort(key=lambda d: -_floor_area(d[1]))
+    fr = _Frame(room, eye, forward, half_fov, obstacles, people, tall_discs,
+                sc.min_visible_fraction, sum(len(shape.solids) for _, shape in drawn))
     for pick, shape in drawn:
         kind = shape.kind
         yaw, origin, mode, wall, ok = _candidates(rng, shape, fr)
@@ -357,7 +396,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
         if found is None:
             dropped += 1
             continue
-        k, solids = found
+        k, solids, ranges = found
         t = _transform(float(yaw[k]), origin[k])
         mode_name = KINDS[kind].modes[int(mode[k])][0]
         items.append(PlacedClutter(kind, cfg.classes[pick], t, shape.params, mode_name,
@@ -365,7 +404,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
         meshes.append(StaticMesh(f"clutter:{kind}", shape.vertices @ t[:3, :3].T + t[:3, 3],
                                  shape.faces, roles[cfg.classes[pick]][shape.roles]))
         fr.add(solids, [CLUTTER_GAP_M] * len(solids))
-        fr.hide([s.poly for s in solids if _hides(s)])
+        fr.hide([s.poly for s in solids if _hides(s)], ranges)
         placed += solids
         if shape.opening is not None and wall[k] >= 0:
             w = fr.walls[int(wall[k])]
@@ -376,9 +415,24 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(placed))
 
 
-# per kind: the cumulative weights of its modes and their names
+# where a candidate stands: PLACEMENT_MODES' positions, and nowhere (no free wall for it)
+_CORNER, _FLOOR = PLACEMENT_MODES.index("corner"), PLACEMENT_MODES.index("floor")
+_NOWHERE = -1
+# per kind: the cumulative weights of its modes and where each stands
 _MODE_CDF = {k.name: (np.cumsum([w for _, w in k.modes]) / sum(w for _, w in k.modes),
-                      np.array([n for n, _ in k.modes])) for k in KINDS.values()}
+                      np.array([PLACEMENT_MODES.index(n) for n, _ in k.modes]))
+             for k in KINDS.values()}
+
+
+@lru_cache(maxsize=64)
+def _repeats(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per entry of a config's ``kinds``: its kind's ``repeat`` (N,), and which entries
+    are the same kind (N, N) (read-only: every frame of a job shares them)."""
+    repeat = np.array([KINDS[k].repeat for k in kinds])
+    same = np.array([[a == b for b in kinds] for a in kinds])
+    repeat.setflags(write=False)
+    same.setflags(write=False)
+    return repeat, same
 
 
 def _floor_area(shape: ClutterShape) -> float:
@@ -398,62 +452,81 @@ def _transform(yaw: float, origin: np.ndarray) -> np.ndarray:
 
 
 def _first_fit(shape: ClutterShape, yaw: np.ndarray, origin: np.ndarray, ok: np.ndarray,
-               wall: np.ndarray, fr: _Frame) -> tuple[int, list[Solid]] | None:
-    """The first candidate, in drawing order, that passes every test, and its solids."""
-    room = fr.room
-    if not KINDS[shape.kind].pierces_ceiling and shape.top > room.height_m:
+               wall: np.ndarray, fr: _Frame
+               ) -> tuple[int, list[Solid], list[float]] | None:
+    """The first candidate, in drawing order, that passes every test, its solids, and
+    the distances from the camera of its solids that hide people (:func:`_hides`)."""
+    if not KINDS[shape.kind].pierces_ceiling and shape.top > fr.room.height_m:
         return None
     idx = np.flatnonzero(ok)
     yaw, origin, wall = yaw[idx], origin[idx], wall[idx]
-    polys = [_rotate(yaw, p) + origin[:, None, :] for p, *_ in shape.solids]
-    keep = np.ones(len(idx), bool)
+    cos, sin = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    polys = [_turn(cos, sin, p, origin) for p, *_ in shape.solids]
     inner = [polys[j] for j, s in enumerate(shape.solids) if s[3]]
-    margin = np.where(wall < 0, WALL_GAP_M, 0.0)
-    for p in inner:
-        clear = (p @ fr.planes[:2] + fr.planes[2]).min(axis=(1, 2))
-        keep &= (clear >= margin - 1e-9) & (_distance(fr.eye, p) >= MIN_RANGE_M)
+    least = np.where(wall < 0, WALL_GAP_M, 0.0) - 1e-9
+    keep = np.ones(len(idx), bool)
+    ranges = {}  # inner solid -> (K,) its nearest point's distance from the camera
+    for j, (p, (*_, inside)) in enumerate(zip(polys, shape.solids, strict=True)):
+        if inside:
+            clear = _min(p @ fr.planes[:2] + fr.planes[2], (1, 2))
+            ranges[j] = _distance(fr.eye, p)
+            keep &= (clear >= least) & (ranges[j] >= MIN_RANGE_M)
+    if not _any(keep):
+        return None
     # at least VISIBLE_SHARE of the item's bearings inside the horizontal view
-    allp = np.concatenate(inner, axis=1) - fr.eye
+    allp = (np.concatenate(inner, axis=1) if len(inner) > 1 else inner[0]) - fr.eye
+    n = allp.shape[1]
     b = _wrap(np.arctan2(allp[..., 0], allp[..., 1]) - fr.base)
-    mid = _wrap(np.arctan2(allp[..., 0].mean(1), allp[..., 1].mean(1)) - fr.base)
+    mid = _wrap(np.arctan2(_sum(allp[..., 0], 1) / n, _sum(allp[..., 1], 1) / n) - fr.base)
     rel = _wrap(b - mid[:, None])
-    lo, hi = mid + rel.min(1), mid + rel.max(1)
+    lo, hi = mid + _min(rel, 1), mid + _max(rel, 1)
     seen = np.minimum(hi, fr.half_fov) - np.maximum(lo, -fr.half_fov)
     keep &= seen >= VISIBLE_SHARE * np.maximum(hi - lo, 1e-9)
-    if len(fr.gaps) and keep.any():
+    if not _any(keep):
+        return None
+    if fr.count:
         # boxes first (all pairs at once), the separating-axis test on the close ones
-        g = fr.gaps
+        g, ob = fr.gaps, fr.boxes
+        x1, z1 = ob[:, 2] + g, ob[:, 3] + g
         for p, (_, y0, y1, _) in zip(polys, shape.solids, strict=True):
-            box = np.concatenate([p.min(1), p.max(1)], 1)  # (K, 4)
-            ob = fr.boxes
+            lo, hi = _min(p, 1), _max(p, 1)  # (K, 2)
             near = ((fr.heights[:, 0] < y1) & (fr.heights[:, 1] > y0))[None] & keep[:, None] & (
-                (box[:, None, 0] < ob[None, :, 2] + g) & (ob[None, :, 0] < box[:, None, 2] + g)
-                & (box[:, None, 1] < ob[None, :, 3] + g) & (ob[None, :, 1] < box[:, None, 3] + g))
+                (lo[:, None, 0] < x1) & (ob[:, 0] < hi[:, None, 0] + g)
+                & (lo[:, None, 1] < z1) & (ob[:, 1] < hi[:, None, 1] + g))
             kk, mm = np.nonzero(near)
             if len(kk):
-                a = p[kk]  # (N, P, 2)
-                na = np.concatenate([a[:, 1:], a[:, :1]], 1) - a
-                na = np.stack([na[..., 1], -na[..., 0]], -1)
-                na /= np.maximum(np.linalg.norm(na, axis=-1, keepdims=True), 1e-12)
-                axes = np.concatenate([na, fr.normals[mm]], 1)  # (N, A, 2)
-                b = fr.polys[mm]
-                ax, az = axes[..., 0, None], axes[..., 1, None]
-                pa = a[:, None, :, 0] * ax + a[:, None, :, 1] * az  # (N, A, P)
-                pb = b[:, None, :, 0] * ax + b[:, None, :, 1] * az  # (N, A, Q)
-                sep = (((pa.min(-1) - pb.max(-1) >= g[mm, None])
-                        | (pb.min(-1) - pa.max(-1) >= g[mm, None]))
-                       & (np.abs(axes).sum(-1) > 0)).any(-1)
-                clash = np.zeros(len(idx), bool)
-                np.logical_or.at(clash, kk, ~sep)
-                keep &= ~clash
+                keep[kk[~_separated(p[kk], fr.polys[mm], fr.normals[mm], g[mm])]] = False
     tall = [j for j, (_, y0, y1, inside) in enumerate(shape.solids)
             if inside and y1 >= HIDES_ABOVE_M and y0 < HIDES_FROM_M]
     if tall and fr.people:  # the costly test, on the first TRIES candidates left
         cand = np.flatnonzero(keep)[:TRIES]
-        hit = cand[fr.visible([polys[j][cand] for j in tall])]
+        hit = cand[fr.visible([polys[j][cand] for j in tall], [ranges[j][cand] for j in tall])]
     else:
         hit = np.flatnonzero(keep)
     if not len(hit):
         return None
     k = int(hit[0])
-    return int(idx[k]), [Solid(polys[j][k], s[1], s[2], s[3]) for j, s in enumerate(shape.solids)]
+    return (int(idx[k]), [Solid(polys[j][k], s[1], s[2], s[3]) for j, s in enumerate(shape.solids)],
+            [ranges[j][k] for j in tall])
+
+
+def _separated(a: np.ndarray, b: np.ndarray, b_normals: np.ndarray, gap: np.ndarray
+               ) -> np.ndarray:
+    """(N,) bool: polygon a[n] (N, P, 2) at least gap[n] from polygon b[n] (N, Q, 2) of
+    unit edge normals ``b_normals`` (N, Q, 2) (zero: a repeated corner), by the
+    separating-axis test over both polygons' edge normals (a zero axis proves nothing).
+
+    Corners and axes are the leading axes and pairs the last, so that the extremes over
+    the corners are elementwise (a reduction over a short last axis loops per row)."""
+    at = a.transpose(2, 1, 0)  # (2, P, N)
+    e = np.concatenate([at[:, 1:], at[:, :1]], 1) - at
+    nx, nz = e[1], -e[0]  # a's edge normals, then unit
+    length = np.maximum(np.sqrt(nx * nx + nz * nz), 1e-12)
+    ax = np.concatenate([nx / length, b_normals[..., 0].T])  # (A, N)
+    az = np.concatenate([nz / length, b_normals[..., 1].T])
+    corners = np.concatenate([a, b], 1).transpose(2, 1, 0).copy()  # (2, P + Q, N)
+    proj = corners[0][:, None] * ax + corners[1][:, None] * az  # (P + Q, A, N)
+    p = a.shape[1]
+    lo_a, hi_a, lo_b, hi_b = _min(proj[:p]), _max(proj[:p]), _min(proj[p:]), _max(proj[p:])
+    sep = ((lo_a - hi_b >= gap) | (lo_b - hi_a >= gap)) & ((ax != 0) | (az != 0))
+    return _any(sep)
