@@ -195,6 +195,15 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     assert res["parts_on"] == "the true people alone"
     assert "person stage" in res["people"]["called"]
     assert res["mean_per_class"] > 0.9  # body and head of segmented people
+    # --cut-out: the same frames with their people alone measured: nothing else to call
+    whole = eval_json(capsys, tmp_path, "w.json", str(forest), test)
+    assert not whole["cut_out"] and whole["people"]["overall"]["precision"] < 0.99
+    cut = eval_json(capsys, tmp_path, "c.json", str(forest), test, "--cut-out")
+    assert cut["cut_out"] and cut["people"]["overall"]["precision"] == 1.0
+    cut = eval_json(capsys, tmp_path, "c.json", str(forest), test, "--segment", "--cut-out")
+    assert cut["people"]["overall"]["instance_recall"] > 0.5
+    one_line_error(capsys, "forest", "eval", str(forest), "--real", str(tmp_path / "rooms.zarr"),
+                   "--cut-out", match="--cut-out: a setting of the test stores")
     # the segmented forest evaluated alone: also on the true people
     code, _, _ = run(capsys, "forest", "eval", str(parts), test, "--json",
                      str(tmp_path / "p.json"))
@@ -221,6 +230,12 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
                        "--out", str(tmp_path / "g.npz"), "--quiet")
     assert code == 0 and Forest.load(tmp_path / "g.npz").person_stage is not None
+    assert Forest.load(tmp_path / "g.npz").meta["person_stage"]["cut_out"]
+    code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
+                       "--out", str(tmp_path / "h.npz"), "--quiet", "--no-cut-out")
+    assert code == 0 and not Forest.load(tmp_path / "h.npz").meta["person_stage"]["cut_out"]
+    a, b = (Forest.load(tmp_path / n).person_stage.to_arrays("s") for n in ("g.npz", "h.npz"))
+    assert any(a[k].shape != b[k].shape or (a[k] != b[k]).any() for k in a)  # other rows
     every = tmp_path / "every.npz"
     assert main(["forest", "train", store, "--out", str(every), *SMALL]) == 0
     capsys.readouterr()
@@ -490,3 +505,59 @@ def test_at_image_edge_is_the_measured_frames_edge():
     comp, x = seg.features(framed, INTR, labels)
     left = [c for c in range(1, len(x)) if not np.isnan(x[c]).any() and (comp[:, 10] == c).any()]
     assert left and (x[left, edge] == 1).all() and not comp[:, 0].any()
+
+
+def test_a_cut_out_view_keeps_the_people_alone(tmp_path):
+    """The person stage also learns from frames whose background was removed before the
+    forest saw them (``cut_out_view``): only people measured, hair and clothes (scene class
+    person) with them. Learnt from such views of rooms, it calls the people of new cut-out
+    rooms people and still rejects the cabinets of whole rooms."""
+    import zarr
+
+    from vhgen.forest.data import read_classes, select_frames, store_info
+    from vhgen.forest.from_stores import cut_out_view, stage_rows
+    from vhgen.scene.geometry import FLOOR, PERSON
+
+    depth, labels, who = room(5)
+    classes = np.where(who > 0, PERSON, FLOOR).astype(np.uint8)
+    truth = np.where(labels == 11, 0, labels)  # the heads unlabelled: hair, as a hat is
+    view = cut_out_view(depth, truth, classes)
+    keep = who > 0
+    np.testing.assert_array_equal(view[keep], depth[keep])
+    assert not view[~keep].any() and view.dtype == depth.dtype
+    # without a classes array (zeros): the labelled people alone
+    assert not cut_out_view(depth, truth, np.zeros_like(classes))[labels == 11].any()
+
+    # classes read where a store has them, background (0) where it has none
+    with_c = rooms_store(tmp_path / "c.zarr", range(3))
+    zarr.open_group(with_c, mode="r+").create_array(
+        "classes", data=np.full((3,) + depth.shape, PERSON, np.uint8),
+        chunks=(1,) + depth.shape)
+    without = rooms_store(tmp_path / "n.zarr", range(2))
+    frames = select_frames([store_info(without), store_info(with_c)], None, 0)
+    got = read_classes(frames, (5,) + depth.shape)
+    assert not got[:2].any() and (got[2:] == PERSON).all()
+    assert store_info(with_c).has_classes and not store_info(without).has_classes
+
+    seg = Segmenter(min_pixels=50)
+
+    def rows(seeds, cut):
+        xs, ys = [], []
+        for s in seeds:
+            d, lab, k = room(s)
+            if cut:
+                d = cut_out_view(d, lab, np.zeros_like(lab))
+            noisy = ((np.random.default_rng(1000 + s).uniform(size=d.shape) < 0.3)
+                     & (d > 0)).astype(np.uint8) * 4
+            x, y = stage_rows(seg, d, INTR, noisy, k)
+            xs.append(x)
+            ys.append(y)
+        return np.concatenate(xs), np.concatenate(ys)
+
+    train = [rows(range(30), False), rows(range(30), True)]
+    stage = PersonStage.fit(np.concatenate([x for x, _ in train]),
+                            np.concatenate([y for _, y in train]), FEATURES, trees=30, seed=0)
+    xc, yc = rows(range(100, 115), True)
+    assert yc.sum() >= 20 and (stage.predict_proba(xc[yc]) >= 0.5).mean() >= 0.9
+    xw, yw = rows(range(100, 115), False)
+    assert (~yw).sum() >= 10 and (stage.predict_proba(xw[~yw]) >= 0.5).mean() <= 0.1

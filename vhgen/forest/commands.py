@@ -109,6 +109,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.min_body_fraction is not None and not args.segment:
         raise ForestError(f"--min-body-fraction {args.min_body_fraction:g}: a setting of "
                           "--segment, which is not given")
+    if args.cut_out and not args.stores:
+        raise ForestError("--cut-out: a setting of the test stores, none given")
     forest = load_any_forest(args.forest, fx=args.fx)
     out: dict[str, Any] = {"forest": str(args.forest)}
     if args.stores:
@@ -164,7 +166,7 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
             return lab.people(depth, info.intrinsics, labels)[1] > 0
 
     res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out,
-                   person_mask=mask, called_by=how, parts=parts)
+                   person_mask=mask, called_by=how, parts=parts, cut_out=args.cut_out)
     print(table(res))
     print(persons_table(res["people"]))
     if res["frames_per_second"]:
@@ -317,24 +319,26 @@ def _cmd_label(args: argparse.Namespace) -> int:
 
 
 def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
-                      quiet: bool) -> None:
+                      quiet: bool, cut_out: bool = True) -> None:
     from vhgen.forest.from_stores import train_person_stage
 
     if forest.meta.get("params", {}).get("segmented"):
         raise ForestError("--person-frames: a --segmented forest sees only people; train "
                           "the person stage with the forest that finds them")
-    stage = train_person_stage(forest, stores, frames=frames, seed=seed,
+    stage = train_person_stage(forest, stores, frames=frames, seed=seed, cut_out=cut_out,
                                progress=None if quiet else _progress)
     forest.person_stage = stage
     forest.meta["person_stage"] = {"stores": [str(Path(s).resolve()) for s in stores],
-                                   "frames": frames, "seed": seed, "trees": len(stage.roots)}
+                                   "frames": frames, "seed": seed, "trees": len(stage.roots),
+                                   "cut_out": cut_out}
 
 
 def _cmd_person_stage(args: argparse.Namespace) -> int:
     from vhgen.forest.trees import Forest
 
     forest = Forest.load(args.forest)
-    _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet)
+    _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet,
+                      not args.no_cut_out)
     path = forest.save(args.out or args.forest)
     print(f"wrote {path}: the forest with a person stage of "
           f"{forest.meta['person_stage']['trees']} trees from {args.frames} frames")
@@ -436,6 +440,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     help="seed of the frames and the trees")
     ps.add_argument("--out", type=A.output_path(".npz"),
                     help="write the forest with its stage here (default: in place)")
+    ps.add_argument("--no-cut-out", action="store_true",
+                    help="learn only from whole frames and their cropped views, not also from "
+                         "each frame with its background removed (its people alone)")
     ps.add_argument("--quiet", action="store_true", help="no progress")
     ps.set_defaults(func=_cmd_person_stage)
 
@@ -466,6 +473,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="folder for confusion.png and contact_sheet.png (stores) and "
                         "real_sheet.png (real frames)")
     e.add_argument("--max-frames", type=A.int_range(1), help="a seeded random subset of the frames")
+    e.add_argument("--cut-out", action="store_true",
+                   help="score the stores' frames with their background removed, their people "
+                        "alone measured (as a pipeline with background subtraction feeds the "
+                        "forest; the synthetic counterpart of --people-only)")
     e.add_argument("--fx", type=A.float_range(0, lo_open=True),
                    help="training focal length of PCL trees (for the focal-length check)")
     e.set_defaults(func=_cmd_eval)

@@ -16,6 +16,7 @@ import numpy as np
 
 from vhgen.camera import Intrinsics
 from vhgen.errors import ForestError, StoreError
+from vhgen.scene.geometry import PERSON
 from vhgen.store.zarr_store import open_store, read_attrs
 from vhgen.store.zarr_store import read_frames as read_store_frames
 
@@ -38,6 +39,7 @@ class StoreInfo:
     cx: float | None = None  # None: the image centre
     cy: float | None = None
     has_instances: bool = False  # an ``instances`` array (person k = value k)
+    has_classes: bool = False  # a ``classes`` array (vhgen.scene.geometry.SCENE_CLASSES)
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -80,6 +82,8 @@ def store_info(path: str | Path) -> StoreInfo:
     if has_instances and g["instances"].shape != depth.shape:
         raise ForestError(f"{p}: instances {g['instances'].shape} and depth {depth.shape} "
                           "differ")
+    has_classes = (p / "classes" / "zarr.json").is_file() and \
+        g["classes"].shape == depth.shape
     return StoreInfo(str(p), int(depth.shape[0]), str(attrs.get("label_scheme", "")),
                      tuple(names), float(intr["fx"]), float(intr.get("fy", intr["fx"])),
                      str(sensor.get("name", "")),
@@ -87,7 +91,7 @@ def store_info(path: str | Path) -> StoreInfo:
                      tuple(tuple(c) for c in colors) if colors else None,
                      int(depth.shape[2]), int(depth.shape[1]),
                      float(intr["cx"]) if "cx" in intr else None,
-                     float(intr["cy"]) if "cy" in intr else None, has_instances)
+                     float(intr["cy"]) if "cy" in intr else None, has_instances, has_classes)
 
 
 def check_compatible(infos: list[StoreInfo], what: str = "training") -> StoreInfo:
@@ -139,6 +143,33 @@ def read_frames(frames: list[tuple[str, int, int]]) -> tuple[np.ndarray, np.ndar
         return np.zeros((0, 0, 0), np.uint16), np.zeros((0, 0, 0), np.uint8)
     return (np.concatenate(depth_parts).astype(np.uint16, copy=False),
             np.concatenate(label_parts).astype(np.uint8, copy=False))
+
+
+def read_classes(frames: list[tuple[str, int, int]], shape: tuple[int, ...]) -> np.ndarray:
+    """Scene classes (N, H, W) uint8 of the selected frames (ids of
+    :data:`vhgen.scene.geometry.SCENE_CLASSES`); 0 (background) for the frames of a store
+    without a ``classes`` array. ``shape``: (N, H, W)."""
+    out = np.zeros(shape, np.uint8)
+    by_store: dict[str, list[int]] = {}
+    for i, (path, _, _) in enumerate(frames):
+        by_store.setdefault(path, []).append(i)
+    for path, idx in by_store.items():
+        info = store_info(path)
+        if not info.has_classes:
+            continue
+        fs = np.asarray([frames[i][1] for i in idx], np.int64)
+        out[idx] = read_store_frames(open_store(path), ("classes",), fs,
+                                     info.frames_per_shard)["classes"]
+    return out
+
+
+def cut_out_view(depth_mm: np.ndarray, truth: np.ndarray, classes: np.ndarray
+                 ) -> np.ndarray:
+    """A frame as a pipeline that removed its background leaves it: only its people
+    (``truth`` > 0, or scene class person: clothes, hair) measured, everything else read
+    as no measurement. Returns the depth of the view (the truth is the frame's)."""
+    keep = (truth > 0) | (classes == PERSON)
+    return np.where(keep, depth_mm, 0).astype(depth_mm.dtype)
 
 
 def read_instances(frames: list[tuple[str, int, int]], labels: np.ndarray

@@ -19,7 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from vhgen.forest.data import StoreInfo, read_frames, read_instances, select_frames
+from vhgen.forest.data import (
+    StoreInfo,
+    cut_out_view,
+    read_classes,
+    read_frames,
+    read_instances,
+    select_frames,
+)
 from vhgen.forest.persons import PeopleScore, frame_people
 from vhgen.forest.trees import Forest, Predictor
 
@@ -58,7 +65,8 @@ def scores(conf: np.ndarray, names: list[str]) -> dict:
 def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None = None,
              seed: int = 0, batch: int = 32, out_dir: str | Path | None = None,
              sheet_frames: int = 4, person_mask: PersonMask | None = None,
-             called_by: str = "forest labels > 0", parts: Forest | None = None) -> dict:
+             called_by: str = "forest labels > 0", parts: Forest | None = None,
+             cut_out: bool = False) -> dict:
     """Label every selected frame and score it; ``out_dir`` gets confusion.png and
     contact_sheet.png. Returns the scores plus frames, seconds, fps and the matrix, and
     under ``people`` the person scores of :mod:`vhgen.forest.persons` on ``person_mask``
@@ -66,7 +74,8 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     scores are the forest's own labels, or those of ``parts``; a forest trained
     ``--segmented`` (or with a ``--segmented-share``) labels the true people alone (the
     depth of every other pixel removed: Shotton et al.'s test of the parts of segmented
-    people)."""
+    people). ``cut_out``: every frame is scored as a pipeline that removed its background
+    feeds it, its people alone measured (:func:`vhgen.forest.data.cut_out_view`)."""
     names = list(forest.meta["label_names"])
     by_path = {i.path: i for i in infos}
     people = PeopleScore(called_by=called_by)
@@ -88,6 +97,8 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
     for s in range(0, len(frames), batch):
         part = frames[s:s + batch]
         depth, labels = read_frames(part)
+        if cut_out:
+            depth = cut_out_view(depth, labels, read_classes(part, depth.shape))
         if labels.max(initial=0) >= c:
             from vhgen.errors import ForestError
 
@@ -118,6 +129,7 @@ def evaluate(forest: Forest, infos: list[StoreInfo], *, max_frames: int | None =
                 "frames_per_second": round(len(frames) / seconds, 2) if seconds else None,
                 "confusion": conf.tolist(), "label_names": names,
                 "parts_on": "the true people alone" if on_people else "whole frames",
+                "cut_out": cut_out,
                 "people": people.result()})
     if out_dir is not None:
         out = Path(out_dir)

@@ -21,7 +21,14 @@ import numpy as np
 from vhgen.errors import ForestError
 from vhgen.executor import InlinePool
 from vhgen.executor.choice import choose_executor
-from vhgen.forest.data import check_compatible, read_frames, select_frames, store_info
+from vhgen.forest.data import (
+    check_compatible,
+    cut_out_view,
+    read_classes,
+    read_frames,
+    select_frames,
+    store_info,
+)
 from vhgen.forest.person_stage import PersonStage
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
 from vhgen.forest.trees import Forest
@@ -180,7 +187,7 @@ def cropped_view(depth_mm: np.ndarray, truth: np.ndarray, rng: np.random.Generat
 
 def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                        trees: int = 200, seed: int = 0, without_floor: bool = True,
-                       cropped: bool = True,
+                       cropped: bool = True, cut_out: bool = True,
                        progress: Callable[[str], None] | None = None) -> PersonStage:
     """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
@@ -192,7 +199,10 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     frame also gives the candidates of a :func:`cropped_view` of it (seeded by ``seed``
     and the frame's place in the selection), labelled by the forest on that view: the
     recommended scenes frame every person whole, and a real camera cuts off the people
-    close to it."""
+    close to it. ``cut_out``: every frame also gives the candidates of its
+    :func:`cut_out_view` (its people alone), labelled by the forest on that view: frames
+    whose background a user's pipeline (background subtraction, the sensor's middleware)
+    removed before the forest sees them."""
     from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Predictor
 
@@ -212,6 +222,9 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                 np.random.SeedSequence([seed, _CROP_STREAM, s + i]))) for i in range(len(part))]
             vdepth = np.stack([d for d, _ in cut])
             views.append((vdepth, predictor.predict(vdepth), np.stack([t for _, t in cut])))
+        if cut_out:
+            odepth = cut_out_view(depth, truth, read_classes(part, depth.shape))
+            views.append((odepth, predictor.predict(odepth), truth))
         for vd, vl, vt in views:
             for i, (path, _, _) in enumerate(part):
                 x, y = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
