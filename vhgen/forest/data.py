@@ -150,17 +150,27 @@ def read_classes(frames: list[tuple[str, int, int]], shape: tuple[int, ...]) -> 
     :data:`vhgen.scene.geometry.SCENE_CLASSES`); 0 (background) for the frames of a store
     without a ``classes`` array. ``shape``: (N, H, W)."""
     out = np.zeros(shape, np.uint8)
+    _read_optional(frames, "classes", out)
+    return out
+
+
+def _read_optional(frames: list[tuple[str, int, int]], name: str, out: np.ndarray
+                   ) -> np.ndarray:
+    """Fill ``out`` (N, H, W) with the optional array ``name`` (``instances`` or
+    ``classes``) of the selected frames whose store has it; returns (N,) bool: which."""
+    has = np.zeros(len(frames), bool)
     by_store: dict[str, list[int]] = {}
     for i, (path, _, _) in enumerate(frames):
         by_store.setdefault(path, []).append(i)
     for path, idx in by_store.items():
         info = store_info(path)
-        if not info.has_classes:
+        if not (info.has_instances if name == "instances" else info.has_classes):
             continue
         fs = np.asarray([frames[i][1] for i in idx], np.int64)
-        out[idx] = read_store_frames(open_store(path), ("classes",), fs,
-                                     info.frames_per_shard)["classes"]
-    return out
+        out[idx] = read_store_frames(open_store(path), (name,), fs,
+                                     info.frames_per_shard)[name]
+        has[idx] = True
+    return has
 
 
 def cut_out_view(depth_mm: np.ndarray, truth: np.ndarray, classes: np.ndarray
@@ -179,16 +189,4 @@ def read_instances(frames: list[tuple[str, int, int]], labels: np.ndarray
     store's ``instances`` array. A store without one (written before it existed) gives
     ``labels > 0`` (the frames' ``labels``, (N, H, W)) as one person."""
     out = (np.asarray(labels) > 0).astype(np.uint8)
-    has = np.zeros(len(frames), bool)
-    by_store: dict[str, list[int]] = {}
-    for i, (path, _, _) in enumerate(frames):
-        by_store.setdefault(path, []).append(i)
-    for path, idx in by_store.items():
-        info = store_info(path)
-        if not info.has_instances:
-            continue
-        fs = np.asarray([frames[i][1] for i in idx], np.int64)
-        got = read_store_frames(open_store(path), ("instances",), fs, info.frames_per_shard)
-        out[idx] = got["instances"]
-        has[idx] = True
-    return out, has
+    return out, _read_optional(frames, "instances", out)
