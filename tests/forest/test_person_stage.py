@@ -230,10 +230,10 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
                        "--out", str(tmp_path / "g.npz"), "--quiet")
     assert code == 0 and Forest.load(tmp_path / "g.npz").person_stage is not None
-    assert Forest.load(tmp_path / "g.npz").meta["person_stage"]["cut_out"]
+    assert not Forest.load(tmp_path / "g.npz").meta["person_stage"]["cut_out"]
     code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
-                       "--out", str(tmp_path / "h.npz"), "--quiet", "--no-cut-out")
-    assert code == 0 and not Forest.load(tmp_path / "h.npz").meta["person_stage"]["cut_out"]
+                       "--out", str(tmp_path / "h.npz"), "--quiet", "--cut-out")
+    assert code == 0 and Forest.load(tmp_path / "h.npz").meta["person_stage"]["cut_out"]
     a, b = (Forest.load(tmp_path / n).person_stage.to_arrays("s") for n in ("g.npz", "h.npz"))
     assert any(a[k].shape != b[k].shape or (a[k] != b[k]).any() for k in a)  # other rows
     every = tmp_path / "every.npz"

@@ -319,7 +319,7 @@ def _cmd_label(args: argparse.Namespace) -> int:
 
 
 def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
-                      quiet: bool, cut_out: bool = True) -> None:
+                      quiet: bool, cut_out: bool = False) -> None:
     from vhgen.forest.from_stores import train_person_stage
 
     if forest.meta.get("params", {}).get("segmented"):
@@ -338,7 +338,7 @@ def _cmd_person_stage(args: argparse.Namespace) -> int:
 
     forest = Forest.load(args.forest)
     _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet,
-                      not args.no_cut_out)
+                      args.cut_out)
     path = forest.save(args.out or args.forest)
     print(f"wrote {path}: the forest with a person stage of "
           f"{forest.meta['person_stage']['trees']} trees from {args.frames} frames")
@@ -440,9 +440,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     help="seed of the frames and the trees")
     ps.add_argument("--out", type=A.output_path(".npz"),
                     help="write the forest with its stage here (default: in place)")
-    ps.add_argument("--no-cut-out", action="store_true",
-                    help="learn only from whole frames and their cropped views, not also from "
-                         "each frame with its background removed (its people alone)")
+    ps.add_argument("--cut-out", action="store_true",
+                    help="learn also from each frame with its background removed (its people "
+                         "alone), for frames a background subtraction feeds the forest: finds "
+                         "more of those people, and calls more lone objects people")
     ps.add_argument("--quiet", action="store_true", help="no progress")
     ps.set_defaults(func=_cmd_person_stage)
 

@@ -187,7 +187,7 @@ def cropped_view(depth_mm: np.ndarray, truth: np.ndarray, rng: np.random.Generat
 
 def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                        trees: int = 200, seed: int = 0, without_floor: bool = True,
-                       cropped: bool = True, cut_out: bool = True,
+                       cropped: bool = True, cut_out: bool = False,
                        progress: Callable[[str], None] | None = None) -> PersonStage:
     """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
@@ -199,10 +199,11 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     frame also gives the candidates of a :func:`cropped_view` of it (seeded by ``seed``
     and the frame's place in the selection), labelled by the forest on that view: the
     recommended scenes frame every person whole, and a real camera cuts off the people
-    close to it. ``cut_out``: every frame also gives the candidates of its
+    close to it. ``cut_out`` (opt-in): every frame also gives the candidates of its
     :func:`cut_out_view` (its people alone), labelled by the forest on that view: frames
     whose background a user's pipeline (background subtraction, the sensor's middleware)
-    removed before the forest sees them."""
+    removed before the forest sees them. Such a stage finds more of those people and calls
+    more objects with nothing around them people (docs/forest.md)."""
     from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Predictor
 
