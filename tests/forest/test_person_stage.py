@@ -14,7 +14,7 @@ from vhgen.camera import Intrinsics, pixel_rays
 from vhgen.cli import main
 from vhgen.forest.person_stage import PersonStage
 from vhgen.forest.segment import FEATURES, Segmenter
-from vhgen.forest.trees import Forest
+from vhgen.forest.trees import Forest, Predictor
 
 INTR = Intrinsics(160, 120, 131.25, 131.25, 79.5, 59.5)
 SMALL = ["--trees", "2", "--depth", "6", "--pixels-per-image", "200", "--features", "40",
@@ -236,6 +236,16 @@ def test_cli_person_stage_and_segmented_parts(tmp_path, capsys):
     assert code == 0 and Forest.load(tmp_path / "h.npz").meta["person_stage"]["cut_out"]
     a, b = (Forest.load(tmp_path / n).person_stage.to_arrays("s") for n in ("g.npz", "h.npz"))
     assert any(a[k].shape != b[k].shape or (a[k] != b[k]).any() for k in a)  # other rows
+    # --vote mass: kept in the file, so that eval and label decide as the stage learnt
+    code, out, _ = run(capsys, "forest", "person-stage", str(forest), store, "--frames", "4",
+                       "--out", str(tmp_path / "m.npz"), "--quiet", "--vote", "mass")
+    mass = Forest.load(tmp_path / "m.npz")
+    assert code == 0 and mass.meta["vote"] == "mass" and mass.meta["person_stage"]["vote"] == "mass"
+    assert "vote" not in Forest.load(tmp_path / "g.npz").meta  # argmax: as before
+    assert Predictor(mass).vote == "mass"
+    code, _, err = run(capsys, "forest", "export", str(tmp_path / "m.npz"), "-o",
+                       str(tmp_path / "pcl"))
+    assert code == 0 and "--vote mass" in err
     every = tmp_path / "every.npz"
     assert main(["forest", "train", store, "--out", str(every), *SMALL]) == 0
     capsys.readouterr()

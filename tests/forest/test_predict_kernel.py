@@ -41,9 +41,11 @@ def reference_leaves(forest: Forest, depth: np.ndarray) -> np.ndarray:
     return out
 
 
-def reference_predict(forest: Forest, depth: np.ndarray) -> np.ndarray:
+def reference_predict(forest: Forest, depth: np.ndarray, mass: bool = False) -> np.ndarray:
     """(H, W) uint8: argmax (first maximum) of the sum of the trees' normalised float32 leaf
-    histograms, summed tree after tree; 0 where there is no measurement."""
+    histograms, summed tree after tree; 0 where there is no measurement. ``mass``: 0 where
+    the background's sum is at least the parts' (summed in float32 class after class),
+    else the first maximum among the parts."""
     leaves = reference_leaves(forest, depth)
     prob = forest.probabilities()
     body = leaves[0] >= 0
@@ -51,7 +53,13 @@ def reference_predict(forest: Forest, depth: np.ndarray) -> np.ndarray:
     for t in range(1, forest.num_trees):
         acc += prob[leaves[t][body]]
     out = np.zeros(depth.shape, np.uint8)
-    out[body] = np.argmax(acc, axis=1)
+    if mass:
+        parts = np.zeros(len(acc), np.float32)
+        for k in range(1, acc.shape[1]):
+            parts += acc[:, k]
+        out[body] = np.where(acc[:, 0] >= parts, 0, 1 + np.argmax(acc[:, 1:], axis=1))
+    else:
+        out[body] = np.argmax(acc, axis=1)
     return out
 
 
@@ -125,16 +133,48 @@ def test_numpy_reference_is_the_pcl_feature():
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_complete_forests_match_reference(seed):
+@pytest.mark.parametrize("vote", ["argmax", "mass"])
+def test_complete_forests_match_reference(seed, vote):
     rng = np.random.default_rng(seed)
     frames = blob_frames(rng, 3, 48, 64)
     forest = random_complete_forest(rng, 3, 9, 26, max_offset=130)
-    pred = Predictor(forest)
+    if vote == "mass":  # background at about half of every leaf: both decisions occur
+        forest.counts[:, 0] = forest.counts[:, 1:].sum(1) * rng.uniform(0.5, 1.5,
+                                                                        len(forest.counts))
+    pred = Predictor(forest, vote=vote)
+    mass = vote == "mass"
     for d in frames:
-        np.testing.assert_array_equal(pred.predict(d), reference_predict(forest, d))
+        np.testing.assert_array_equal(pred.predict(d), reference_predict(forest, d, mass))
     # the batch path (frames in parallel) is the same kernel
     np.testing.assert_array_equal(pred.predict(frames),
-                                  np.stack([reference_predict(forest, d) for d in frames]))
+                                  np.stack([reference_predict(forest, d, mass) for d in frames]))
+    if mass:
+        got = pred.predict(frames)
+        assert 0.1 < (got[frames > 0] == 0).mean() < 0.9  # both sides of the decision
+
+
+def test_mass_vote_calls_a_person_whose_parts_outweigh_the_background():
+    """One leaf: background 0.4, three parts 0.2 each. argmax: background; by mass: the
+    parts (0.6) outweigh it, so the first most probable part. Background 0.5 against 0.5:
+    background (ties go to it). The forest's meta ``vote`` is the default, and a bad
+    one names itself."""
+    def stump(counts, meta=None):
+        return Forest(np.zeros((1, 4), np.int16), np.zeros(1, np.int32),
+                      np.full(1, -1, np.int32), np.zeros(1, np.int16), np.array([counts]),
+                      np.zeros(1, np.int64), meta or {})
+
+    depth = np.full((4, 5), 2500, np.uint16)
+    depth[0, 0] = 0
+    spread = stump([4, 2, 2, 2])
+    assert (Predictor(spread).predict(depth) == 0).all()
+    got = Predictor(spread, vote="mass").predict(depth)
+    assert got[0, 0] == 0 and (got.ravel()[1:] == 1).all()
+    assert (Predictor(stump([4, 2, 2, 2], {"vote": "mass"})).predict(depth)[1:] == 1).all()
+    assert (Predictor(stump([2, 1, 0, 1]), vote="mass").predict(depth) == 0).all()
+    with pytest.raises(ForestError, match="vote 'sum'"):
+        Predictor(stump([1, 1]), vote="sum")
+    with pytest.raises(ForestError, match="forest vote 'sum'"):
+        Predictor(stump([1, 1], {"vote": "sum"}))
 
 
 def test_trained_forest_with_early_leaves_and_a_stump():

@@ -319,18 +319,24 @@ def _cmd_label(args: argparse.Namespace) -> int:
 
 
 def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
-                      quiet: bool, cut_out: bool = False) -> None:
+                      quiet: bool, cut_out: bool = False, vote: str = "argmax") -> None:
     from vhgen.forest.from_stores import train_person_stage
 
     if forest.meta.get("params", {}).get("segmented"):
         raise ForestError("--person-frames: a --segmented forest sees only people; train "
                           "the person stage with the forest that finds them")
+    # the stage learns from the labels of this vote, so the file keeps it: every later
+    # Predictor of the forest (eval, label) labels the same way (argmax: no key, as before)
+    if vote == "argmax":
+        forest.meta.pop("vote", None)
+    else:
+        forest.meta["vote"] = vote
     stage = train_person_stage(forest, stores, frames=frames, seed=seed, cut_out=cut_out,
                                progress=None if quiet else _progress)
     forest.person_stage = stage
     forest.meta["person_stage"] = {"stores": [str(Path(s).resolve()) for s in stores],
                                    "frames": frames, "seed": seed, "trees": len(stage.roots),
-                                   "cut_out": cut_out}
+                                   "cut_out": cut_out, "vote": vote}
 
 
 def _cmd_person_stage(args: argparse.Namespace) -> int:
@@ -338,7 +344,7 @@ def _cmd_person_stage(args: argparse.Namespace) -> int:
 
     forest = Forest.load(args.forest)
     _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet,
-                      args.cut_out)
+                      args.cut_out, args.vote)
     path = forest.save(args.out or args.forest)
     print(f"wrote {path}: the forest with a person stage of "
           f"{forest.meta['person_stage']['trees']} trees from {args.frames} frames")
@@ -354,6 +360,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
     fx = forest.meta.get("fx")
     print(f"wrote {len(paths)} PCL tree files to {args.output} (trained at fx={fx} px; PCL's "
           "people app reads OpenNI depth registered to RGB, f=525 px)")
+    if forest.meta.get("vote", "argmax") != "argmax":
+        _warn(f"{args.forest}: its labels are decided by --vote {forest.meta['vote']}; PCL's "
+              "trees vote by the most probable class, so PCL labels differently")
     return 0
 
 
@@ -444,6 +453,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     help="learn also from each frame with its background removed (its people "
                          "alone), for frames a background subtraction feeds the forest: finds "
                          "more of those people, and calls more lone objects people")
+    ps.add_argument("--vote", choices=("argmax", "mass"), default="argmax",
+                    help="how the forest's labels, which the stage learns from and decides "
+                         "on, call a pixel a person's: 'argmax' (default), the most probable "
+                         "class; 'mass', the parts together outweigh the background (then the "
+                         "most probable part). Kept in the file: eval and label use it")
     ps.add_argument("--quiet", action="store_true", help="no progress")
     ps.set_defaults(func=_cmd_person_stage)
 

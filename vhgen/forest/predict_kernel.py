@@ -4,8 +4,9 @@ Every pixel walks every tree with exactly the arithmetic of
 :func:`vhgen.forest.features.feature_at` (PCL ``runThroughTree``: the probe position
 ``x + du * (1000 / d)`` in float64, cast to float32, truncated, clamped into the image),
 then the trees' normalised leaf histograms are summed in float32, tree after tree (the
-argmax of the average), and the argmax taken (ties to the lowest class). The labels are
-identical to the slow reference; only the bookkeeping is fast:
+argmax of the average), and the argmax taken (ties to the lowest class; by ``mass``:
+background where its sum is at least all parts' together, else the most probable part).
+The labels are identical to the slow reference; only the bookkeeping is fast:
 
 * **Packed nodes**, 16 bytes, four per cache line: the four int16 offsets in one int64
   word, the threshold (low 32 bits) and the left child (high 32 bits) in the other.
@@ -220,12 +221,15 @@ def _walk_tree(flat, w, h, nodes, root, levels, xyxy, scale, node):
 
 
 @numba.njit(cache=True)
-def predict_frame(img, nodes, roots, levels, prob, out):
+def predict_frame(img, nodes, roots, levels, prob, out, mass=False):
     """Labels of one frame (serial).
 
     img : (H, W) uint16 prepared depth (0 already BACKGROUND_MM), H, W <= 32767.
     nodes, roots, levels, prob : a :class:`PackedForest`.
     out : (H, W) uint8, written: 0 on background, else the argmax class.
+    mass : the person decision by mass: a pixel is background when the background's
+        summed probability is at least that of all parts together (summed in float32,
+        class after class), else its most probable part (first maximum among the parts).
     """
     h, w = img.shape
     flat = img.ravel()
@@ -274,17 +278,32 @@ def predict_frame(img, nodes, roots, levels, prob, out):
                     acc[k] += prob[r, k]
             # class sums are >= +0 and the padding < 0: the float order is the order of
             # the int32 bit patterns, whose maximum vectorises; first maximum = argmax
-            m = bits[0]
-            for k in range(1, cp):
-                m = max(m, bits[k])
-            best = 0
-            while bits[best] != m:
-                best += 1
+            if mass:
+                parts = np.float32(0.0)
+                for k in range(1, cp):
+                    if acc[k] > 0:  # the padding columns are negative
+                        parts += acc[k]
+                if acc[0] >= parts:
+                    best = 0
+                else:
+                    m = bits[1]
+                    for k in range(2, cp):
+                        m = max(m, bits[k])
+                    best = 1
+                    while bits[best] != m:
+                        best += 1
+            else:
+                m = bits[0]
+                for k in range(1, cp):
+                    m = max(m, bits[k])
+                best = 0
+                while bits[best] != m:
+                    best += 1
         oflat[pix[p]] = best
 
 
 @numba.njit(parallel=True, cache=True)
-def predict_batch(imgs, nodes, roots, levels, prob, out):
+def predict_batch(imgs, nodes, roots, levels, prob, out, mass=False):
     """:func:`predict_frame` over (N, H, W) frames, frames in parallel (numba threads)."""
     for i in numba.prange(imgs.shape[0]):
-        predict_frame(imgs[i], nodes, roots, levels, prob, out[i])
+        predict_frame(imgs[i], nodes, roots, levels, prob, out[i], mass)

@@ -7,7 +7,9 @@ as PCL stores it), ``left[i]`` (index of its left child, right child = left + 1,
 leaf), ``depth[i]`` and ``counts[i]`` (training samples per class at the node, class 0 =
 background, k = part k). The forest concatenates its trees; ``roots[t]`` is the first node
 of tree t. Prediction averages the normalised leaf histograms over trees and takes the
-argmax (Shotton et al. 2011, eq. 2), ties to the lowest class.
+argmax (Shotton et al. 2011, eq. 2), ties to the lowest class; a forest whose meta says
+``vote: mass`` calls a pixel background only where the background outweighs all parts
+together (:class:`Predictor`).
 """
 
 from __future__ import annotations
@@ -146,13 +148,32 @@ def _tree_labels(img, offsets, thresh, left, root, labels, out):
             out[y, x] = labels[leaf]
 
 
+VOTES = ("argmax", "mass")
+
+
+def forest_vote(forest: Forest) -> str:
+    """How ``forest`` decides person against background: its meta ``vote`` (set by
+    ``forest person-stage --vote``), else ``argmax``."""
+    vote = str(forest.meta.get("vote", "argmax"))
+    if vote not in VOTES:
+        raise ForestError(f"forest vote {vote!r}: must be one of {', '.join(VOTES)}")
+    return vote
+
+
 class Predictor:
     """Compiled per-pixel labelling with one forest (arrays prepared once); ``parts_only``:
     the parts of pixels known to be a person's (the leaves' background counts left out, as
-    for a forest trained --segmented, which has none)."""
+    for a forest trained --segmented, which has none). ``vote`` (default: the forest's,
+    :func:`forest_vote`): ``argmax``, the most probable class (background one class among
+    the parts); ``mass``, a person where the parts together outweigh the background, then
+    the most probable part (a pixel whose probability is spread over several parts, as a
+    far person's is, is still a person's)."""
 
-    def __init__(self, forest: Forest, parts_only: bool = False):
+    def __init__(self, forest: Forest, parts_only: bool = False, vote: str | None = None):
         self.forest = forest
+        self.vote = forest_vote(forest) if vote is None else vote
+        if self.vote not in VOTES:
+            raise ForestError(f"vote {self.vote!r}: must be one of {', '.join(VOTES)}")
         self._sparse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # tree_labels
         counts = forest.counts
         if parts_only and counts[:, 0].any():  # P(part | pixel of a person): no background
@@ -176,7 +197,7 @@ class Predictor:
         out = np.empty(d.shape, dtype=np.uint8)
         pf = self._packed
         kernel = predict_frame if d.ndim == 2 else predict_batch
-        kernel(d, pf.nodes, pf.roots, pf.levels, pf.prob, out)
+        kernel(d, pf.nodes, pf.roots, pf.levels, pf.prob, out, self.vote == "mass")
         return out
 
     def tree_labels(self, depth: np.ndarray, tree: int) -> np.ndarray:
