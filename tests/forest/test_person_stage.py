@@ -517,6 +517,24 @@ def test_at_image_edge_is_the_measured_frames_edge():
     assert left and (x[left, edge] == 1).all() and not comp[:, 0].any()
 
 
+def test_a_lone_things_view_keeps_the_free_standing_things_alone():
+    """The things of a frame with nothing around them: furniture, props and clutter
+    measured; people (labelled or by class), what they carry, the room's surfaces and
+    what hangs on them not; classes the store does not name are not things."""
+    from vhgen.forest.data import lone_things_view
+
+    names = ("background", "floor", "wall", "prop", "person", "chair", "window", "carried",
+             "lamp")
+    classes = np.array([[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]], np.uint8)
+    depth = np.arange(1000, 1010, dtype=np.uint16)[None]
+    truth = np.zeros_like(classes)
+    view = lone_things_view(depth, truth, classes, names)
+    assert view.dtype == depth.dtype
+    assert np.flatnonzero(view[0]).tolist() == [3, 5, 8]  # prop, chair, lamp
+    truth[0, 5] = 7  # a labelled person's pixel (a hand on the chair's back) is no thing
+    assert np.flatnonzero(lone_things_view(depth, truth, classes, names)[0]).tolist() == [3, 8]
+
+
 def test_a_cut_out_view_keeps_the_people_alone(tmp_path):
     """The person stage also learns from frames whose background was removed before the
     forest saw them (``cut_out_view``): only people measured, hair and clothes (scene class

@@ -451,8 +451,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     help="write the forest with its stage here (default: in place)")
     ps.add_argument("--cut-out", action="store_true",
                     help="learn also from each frame with its background removed (its people "
-                         "alone), for frames a background subtraction feeds the forest: finds "
-                         "more of those people, and calls more lone objects people")
+                         "alone) and from its free-standing things alone (no person), for "
+                         "frames a background subtraction feeds the forest: finds more of "
+                         "those people")
     ps.add_argument("--vote", choices=("argmax", "mass"), default="argmax",
                     help="how the forest's labels, which the stage learns from and decides "
                          "on, call a pixel a person's: 'argmax' (default), the most probable "

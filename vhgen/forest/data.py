@@ -182,6 +182,28 @@ def cut_out_view(depth_mm: np.ndarray, truth: np.ndarray, classes: np.ndarray
     return np.where(keep, depth_mm, 0).astype(depth_mm.dtype)
 
 
+# scene classes that are not free-standing things: the room's surfaces and what hangs on
+# them, and people with what they wear and carry (vhgen.scene.geometry's class names)
+NOT_THINGS = ("background", "floor", "wall", "person", "window", "curtain", "door",
+              "picture", "radiator", "stairs", "carried")
+
+
+def class_names(path: str) -> tuple[str, ...]:
+    """The scene class names of a store (its attrs ``class_names``; () when it has none)."""
+    return tuple(read_attrs(path).get("class_names") or ())
+
+
+def lone_things_view(depth_mm: np.ndarray, truth: np.ndarray, classes: np.ndarray,
+                     class_names: tuple[str, ...] | list[str]) -> np.ndarray:
+    """A frame with only its free-standing things measured (furniture, props, clutter:
+    every scene class not in :data:`NOT_THINGS`), no person: what a pipeline that
+    removed the background leaves of the objects it missed, each with nothing around it.
+    Every candidate of it is no person. Returns the depth of the view."""
+    things = np.array([n not in NOT_THINGS for n in class_names] + [False] * 256)[:256]
+    keep = things[np.asarray(classes, np.uint8)] & (truth == 0)
+    return np.where(keep, depth_mm, 0).astype(depth_mm.dtype)
+
+
 def read_instances(frames: list[tuple[str, int, int]], labels: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Person instances (N, H, W) uint8 of the selected frames (0 = no person, k = the

@@ -23,7 +23,9 @@ from vhgen.executor import InlinePool
 from vhgen.executor.choice import choose_executor
 from vhgen.forest.data import (
     check_compatible,
+    class_names,
     cut_out_view,
+    lone_things_view,
     read_classes,
     read_frames,
     select_frames,
@@ -202,13 +204,16 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     close to it. ``cut_out`` (opt-in): every frame also gives the candidates of its
     :func:`cut_out_view` (its people alone), labelled by the forest on that view: frames
     whose background a user's pipeline (background subtraction, the sensor's middleware)
-    removed before the forest sees them. Such a stage finds more of those people and calls
-    more objects with nothing around them people (docs/forest.md)."""
+    removed before the forest sees them; and of its :func:`lone_things_view` (its
+    free-standing things alone, none a person), so that a thing with nothing around it is
+    not a person for being alone. Such a stage finds more of those people
+    (docs/forest.md)."""
     from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Predictor
 
     chosen = person_stage_frames(forest, stores, frames, seed)
     infos = {s: store_info(s) for s in {p for p, _, _ in chosen}}
+    names = {s: class_names(s) for s in infos} if cut_out else {}
     predictor = Predictor(forest)
     seg = Segmenter()
     xs, ys = [], []
@@ -224,8 +229,15 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
             vdepth = np.stack([d for d, _ in cut])
             views.append((vdepth, predictor.predict(vdepth), np.stack([t for _, t in cut])))
         if cut_out:
-            odepth = cut_out_view(depth, truth, read_classes(part, depth.shape))
+            classes = read_classes(part, depth.shape)
+            odepth = cut_out_view(depth, truth, classes)
             views.append((odepth, predictor.predict(odepth), truth))
+            # and its things alone, none a person: a thing with nothing around it is
+            # not a person for being alone
+            tdepth = np.stack([lone_things_view(depth[i], truth[i], classes[i],
+                                                names[path])
+                               for i, (path, _, _) in enumerate(part)])
+            views.append((tdepth, predictor.predict(tdepth), np.zeros_like(truth)))
         for vd, vl, vt in views:
             for i, (path, _, _) in enumerate(part):
                 x, y = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
