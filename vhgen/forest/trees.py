@@ -151,13 +151,16 @@ def _tree_labels(img, offsets, thresh, left, root, labels, out):
 VOTES = ("argmax", "mass")
 
 
+def _checked_vote(vote: str, what: str = "vote") -> str:
+    if vote not in VOTES:
+        raise ForestError(f"{what} {vote!r}: must be one of {', '.join(VOTES)}")
+    return vote
+
+
 def forest_vote(forest: Forest) -> str:
     """How ``forest`` decides person against background: its meta ``vote`` (set by
     ``forest person-stage --vote``), else ``argmax``."""
-    vote = str(forest.meta.get("vote", "argmax"))
-    if vote not in VOTES:
-        raise ForestError(f"forest vote {vote!r}: must be one of {', '.join(VOTES)}")
-    return vote
+    return _checked_vote(str(forest.meta.get("vote", "argmax")), "forest vote")
 
 
 class Predictor:
@@ -171,9 +174,7 @@ class Predictor:
 
     def __init__(self, forest: Forest, parts_only: bool = False, vote: str | None = None):
         self.forest = forest
-        self.vote = forest_vote(forest) if vote is None else vote
-        if self.vote not in VOTES:
-            raise ForestError(f"vote {self.vote!r}: must be one of {', '.join(VOTES)}")
+        self.vote = forest_vote(forest) if vote is None else _checked_vote(vote)
         self._sparse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # tree_labels
         counts = forest.counts
         if parts_only and counts[:, 0].any():  # P(part | pixel of a person): no background
