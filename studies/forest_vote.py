@@ -1,0 +1,105 @@
+"""How much of a person the part forest calls a body part: vhgen people against real ones.
+
+    python studies/forest_vote.py FOREST.npz STORE [--frames 48] [--people-only DIR ...]
+
+The person stage leans on the forest's vote (``body``: the share of a segmentation
+candidate called a body part, :data:`vhgen.forest.segment.FEATURES`). For the first
+``--frames`` frames of ``STORE`` (a held-out store, e.g. ``people_test.yaml``'s), prints
+the quartiles of ``body`` over the candidates that are people (most of their pixels a
+person's), by median depth, in whole frames and in the same frames with the people cut
+out alone (:func:`vhgen.forest.from_stores.cut_out_view`); then, for each real frame of
+``--people-only`` (frames whose source removed the background, e.g.
+``../shared/real/skeltrack``), every candidate with its depth, ``body`` and the stage's
+probability. Nothing is chosen here: it shows where the forest transfers less
+(docs/forest.md, "The forest's vote on real people").
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+BINS_M = (0.0, 1.5, 2.5, 3.5, np.inf)
+RANGES = tuple(zip(BINS_M[:-1], BINS_M[1:], strict=True))
+
+
+def _person_rows(seg, depth, labels, truth, intr, body_col: int) -> list[tuple[float, float]]:
+    """(median depth m, body) of each candidate of one frame that is a person."""
+    cand = seg.candidates(depth, intr, labels)
+    n = cand.count + 1
+    flat = cand.comp.reshape(-1)
+    size = np.bincount(flat, minlength=n)
+    person = np.bincount(flat, weights=(truth > 0).reshape(-1), minlength=n) >= 0.5 * size
+    x = seg.describe(cand, depth, intr, labels)
+    ok = ~np.isnan(x).any(1) & person
+    return [(float(x[c, 0]), float(x[c, body_col])) for c in np.flatnonzero(ok)]
+
+
+def main() -> None:
+    from vhgen.depthfile import depth_files, read_depth
+    from vhgen.forest.commands import frame_intrinsics
+    from vhgen.forest.data import read_classes, read_frames, store_info
+    from vhgen.forest.from_stores import cut_out_view
+    from vhgen.forest.segment import FEATURES, Segmenter, feature_columns
+    from vhgen.forest.trees import Forest, Predictor
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("forest")
+    ap.add_argument("store")
+    ap.add_argument("--frames", type=int, default=48)
+    ap.add_argument("--people-only", nargs="*", default=[])
+    args = ap.parse_args()
+    forest = Forest.load(args.forest)
+    pred, seg = Predictor(forest), Segmenter()
+    info = store_info(args.store)
+    if not info.has_classes:
+        raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
+    body = FEATURES.index("body")
+    rows: dict[str, list[tuple[float, float]]] = {"whole": [], "cut out": []}
+    count = min(args.frames, info.num_frames)
+    for s in range(0, count, 8):
+        part = [(args.store, i, 0) for i in range(s, min(s + 8, count))]
+        depth, truth = read_frames(part)
+        views = {"whole": depth,
+                 "cut out": cut_out_view(depth, truth, read_classes(part, depth.shape))}
+        for name, view in views.items():
+            labels = pred.predict(view)
+            for i in range(len(part)):
+                rows[name] += _person_rows(seg, view[i], labels[i], truth[i],
+                                           info.intrinsics, body)
+    print(f"{args.forest} on {count} frames of {args.store}: body of person candidates, "
+          "quartiles (people)")
+    print("| view | " + " | ".join(f"{lo:g}-{hi:g} m" for lo, hi in RANGES)
+          + " |")
+    print("|---" * (len(RANGES) + 1) + "|")
+    for name, r in rows.items():
+        a = np.array(r).reshape(-1, 2)
+        cells = []
+        for lo, hi in RANGES:
+            b = a[(a[:, 0] >= lo) & (a[:, 0] < hi), 1]
+            cells.append(" / ".join(f"{q:.2f}" for q in np.quantile(b, [0.25, 0.5, 0.75]))
+                         + f" ({len(b)})" if len(b) else "-")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    stage = forest.person_stage
+    for path in depth_files(args.people_only):
+        frame = read_depth(path)
+        intr = frame_intrinsics(frame, forest)
+        labels = pred.predict(frame.depth_mm)
+        cand = seg.candidates(frame.depth_mm, intr, labels)
+        x = seg.describe(cand, frame.depth_mm, intr, labels)
+        p = (stage.predict_proba(x[:, feature_columns(stage.features)])
+             if stage is not None else np.full(len(x), np.nan))
+        for c in np.flatnonzero(~np.isnan(x).any(1)):
+            pixels = int((cand.comp == c).sum())
+            if pixels >= 5000:  # people, not the crumbs at their edges
+                print(f"{Path(path).name}: candidate {c}, {pixels} pixels, "
+                      f"{x[c, 0]:.2f} m, body {x[c, body]:.2f}, stage {p[c]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
