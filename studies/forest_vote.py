@@ -28,23 +28,11 @@ BINS_M = (0.0, 1.5, 2.5, 3.5, np.inf)
 RANGES = tuple(zip(BINS_M[:-1], BINS_M[1:], strict=True))
 
 
-def _person_rows(seg, depth, labels, truth, intr, body_col: int) -> list[tuple[float, float]]:
-    """(median depth m, body) of each candidate of one frame that is a person."""
-    cand = seg.candidates(depth, intr, labels)
-    n = cand.count + 1
-    flat = cand.comp.reshape(-1)
-    size = np.bincount(flat, minlength=n)
-    person = np.bincount(flat, weights=(truth > 0).reshape(-1), minlength=n) >= 0.5 * size
-    x = seg.describe(cand, depth, intr, labels)
-    ok = ~np.isnan(x).any(1) & person
-    return [(float(x[c, 0]), float(x[c, body_col])) for c in np.flatnonzero(ok)]
-
-
 def main() -> None:
     from vhgen.depthfile import depth_files, read_depth
     from vhgen.forest.commands import frame_intrinsics
     from vhgen.forest.data import read_classes, read_frames, store_info
-    from vhgen.forest.from_stores import cut_out_view
+    from vhgen.forest.from_stores import cut_out_view, stage_rows
     from vhgen.forest.segment import FEATURES, Segmenter, feature_columns
     from vhgen.forest.trees import Forest, Predictor
 
@@ -59,7 +47,7 @@ def main() -> None:
     info = store_info(args.store)
     if not info.has_classes:
         raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
-    body = FEATURES.index("body")
+    body, depth_m = FEATURES.index("body"), FEATURES.index("depth_m")
     rows: dict[str, list[tuple[float, float]]] = {"whole": [], "cut out": []}
     count = min(args.frames, info.num_frames)
     for s in range(0, count, 8):
@@ -70,8 +58,10 @@ def main() -> None:
         for name, view in views.items():
             labels = pred.predict(view)
             for i in range(len(part)):
-                rows[name] += _person_rows(seg, view[i], labels[i], truth[i],
-                                           info.intrinsics, body)
+                # the stage's own training rows: features, and whether each is a person
+                x, person = stage_rows(seg, view[i], info.intrinsics, labels[i], truth[i],
+                                       without_floor=False)
+                rows[name] += [(float(r[depth_m]), float(r[body])) for r in x[person]]
     print(f"{args.forest} on {count} frames of {args.store}: body of person candidates, "
           "quartiles (people)")
     print("| view | " + " | ".join(f"{lo:g}-{hi:g} m" for lo, hi in RANGES)
@@ -90,12 +80,11 @@ def main() -> None:
         frame = read_depth(path)
         intr = frame_intrinsics(frame, forest)
         labels = pred.predict(frame.depth_mm)
-        cand = seg.candidates(frame.depth_mm, intr, labels)
-        x = seg.describe(cand, frame.depth_mm, intr, labels)
+        comp, x = seg.features(frame.depth_mm, intr, labels)
         p = (stage.predict_proba(x[:, feature_columns(stage.features)])
              if stage is not None else np.full(len(x), np.nan))
         for c in np.flatnonzero(~np.isnan(x).any(1)):
-            pixels = int((cand.comp == c).sum())
+            pixels = int((comp == c).sum())
             if pixels >= 5000:  # people, not the crumbs at their edges
                 print(f"{Path(path).name}: candidate {c}, {pixels} pixels, "
                       f"{x[c, 0]:.2f} m, body {x[c, body]:.2f}, stage {p[c]:.2f}")
