@@ -1,6 +1,7 @@
 """How much of a person the part forest calls a body part: vhgen people against real ones.
 
     python studies/forest_vote.py FOREST.npz STORE [--frames 48] [--people-only DIR ...]
+        [--fx F]
 
 The person stage leans on the forest's vote (``body``: the share of a segmentation
 candidate called a body part, :data:`vhgen.forest.segment.FEATURES`). For the first
@@ -10,7 +11,9 @@ person's), by median depth, in whole frames and in the same frames with the peop
 out alone (:func:`vhgen.forest.from_stores.cut_out_view`); then, for each real frame of
 ``--people-only`` (frames whose source removed the background, e.g.
 ``../shared/real/skeltrack``), every candidate with its depth, ``body`` and the stage's
-probability. Nothing is chosen here: it shows where the forest transfers less
+probability, the forest's probes scaled to ``--fx`` (the focal length of the real
+frames' camera when they do not record one; default: the forest's training one). Nothing
+is chosen here: it shows where the forest transfers less
 (docs/forest.md, "The forest's vote on real people").
 """
 
@@ -34,13 +37,14 @@ def main() -> None:
     from vhgen.forest.data import read_classes, read_frames, store_info
     from vhgen.forest.from_stores import cut_out_view, stage_rows
     from vhgen.forest.segment import FEATURES, Segmenter, feature_columns
-    from vhgen.forest.trees import Forest, Predictor
+    from vhgen.forest.trees import Forest, Predictor, at_focal
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("forest")
     ap.add_argument("store")
     ap.add_argument("--frames", type=int, default=48)
     ap.add_argument("--people-only", nargs="*", default=[])
+    ap.add_argument("--fx", type=float, default=None)
     args = ap.parse_args()
     forest = Forest.load(args.forest)
     pred, seg = Predictor(forest), Segmenter()
@@ -78,8 +82,8 @@ def main() -> None:
     stage = forest.person_stage
     for path in depth_files(args.people_only):
         frame = read_depth(path)
-        intr = frame_intrinsics(frame, forest)
-        labels = pred.predict(frame.depth_mm)
+        intr = frame_intrinsics(frame, forest, args.fx)
+        labels = Predictor(at_focal(forest, intr.fx, intr.fy)).predict(frame.depth_mm)
         comp, x = seg.features(frame.depth_mm, intr, labels)
         p = (stage.predict_proba(x[:, feature_columns(stage.features)])
              if stage is not None else np.full(len(x), np.nan))

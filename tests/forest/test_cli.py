@@ -41,10 +41,10 @@ def test_train_eval_label_export(tmp_path, capsys, boxes_store):
     assert (tmp_path / "ev" / "confusion.png").stat().st_size > 1000
     assert (tmp_path / "ev" / "contact_sheet.png").is_file()
 
-    # a store from another focal length: a warning, not an error
+    # a store from another focal length: a note that the probes follow it, not an error
     other = write_store(tmp_path / "fx.zarr", d, lab, fx=571.26)
     code, _, err = run(capsys, "forest", "eval", str(forest), other)
-    assert code == 0 and "focal length fx=571.26" in err and "warning" in err
+    assert code == 0 and "focal length fx=571.26" in err and "scaled by 1.088" in err
 
     png = tmp_path / "depth.png"
     Image.fromarray(d[0]).save(png)
@@ -66,7 +66,7 @@ def test_train_eval_label_export(tmp_path, capsys, boxes_store):
     far = write_pcd(tmp_path / "f571.pcd", d[0], Intrinsics(w, h, 571.0, 571.0, 39.5, 29.5))
     code, _, err = run(capsys, "forest", "label", str(forest), str(far), "-o",
                        str(tmp_path / "lab3.png"))
-    assert code == 0 and "fx=571 px differs" in err
+    assert code == 0 and "fx=571 px" in err and "scaled by 1.088" in err
 
     # --instances: the people of the segmentation stage as an 8-bit image
     code, _, err = run(capsys, "forest", "label", str(forest), str(pcd), "-o",

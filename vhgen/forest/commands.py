@@ -6,6 +6,7 @@ The learning-curve study is ``python studies/forest_curves.py`` (it generates fr
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -19,18 +20,23 @@ def _warn(msg: str) -> None:
     print(f"vhgen: warning: {msg}", file=sys.stderr)
 
 
+def _note(msg: str) -> None:
+    print(f"vhgen: note: {msg}", file=sys.stderr)
+
+
 def _progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def load_any_forest(path: str, fx: float | None = None) -> Any:
-    """A vhgen forest file, or a PCL tree file / directory of them."""
+def load_any_forest(path: str) -> Any:
+    """A vhgen forest file, or a PCL tree file / directory of them (their training focal
+    length unknown: PCL's files do not record it)."""
     from vhgen.forest.pcl import load_pcl_forest
     from vhgen.forest.trees import Forest
 
     p = Path(path)
     if p.is_dir() or p.suffix == ".txt":
-        return load_pcl_forest(p, fx=fx)
+        return load_pcl_forest(p)
     forest = Forest.load(p)
     stage = forest.person_stage
     if stage is not None:
@@ -46,14 +52,17 @@ def load_any_forest(path: str, fx: float | None = None) -> Any:
 
 
 def check_focal(forest: Any, fx: float | None, where: str) -> None:
-    """Warn (not fail) when the frames' focal length differs from the training one."""
+    """Say (once per call) when the frames' focal length differs from the training one:
+    the forest's probes are then scaled to it (:func:`vhgen.forest.trees.at_focal`)."""
+    from vhgen.forest.trees import FOCAL_TOLERANCE_PX
+
     train_fx = forest.meta.get("fx")
     if fx is None or train_fx is None:
         return
-    if abs(float(train_fx) - float(fx)) > 0.5:
-        _warn(f"{where}: focal length fx={fx:g} px differs from the forest's training "
-              f"fx={float(train_fx):g} px; offsets are in pixel-metres of the training camera, "
-              "expect lower accuracy (train on frames from a matching sensor preset)")
+    if abs(float(train_fx) - float(fx)) > FOCAL_TOLERANCE_PX:
+        _note(f"{where}: focal length fx={fx:g} px, the forest's training fx="
+              f"{float(train_fx):g} px: its probes are scaled by {float(fx) / float(train_fx):.3f} "
+              "(offsets are pixel-metres of the training camera)")
 
 
 def _params(args: argparse.Namespace) -> Any:
@@ -111,7 +120,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                           "--segment, which is not given")
     if args.cut_out and not args.stores:
         raise ForestError("--cut-out: a setting of the test stores, none given")
-    forest = load_any_forest(args.forest, fx=args.fx)
+    forest = load_any_forest(args.forest)
     out: dict[str, Any] = {"forest": str(args.forest)}
     if args.stores:
         out.update(_eval_stores(forest, args))
@@ -128,9 +137,12 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
 
     frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn,
                               people_only=args.people_only)
+    told = set()
     for f in frames:
-        if f.frame.intrinsics is not None:
-            check_focal(forest, f.frame.intrinsics.fx, f.frame.path)
+        fx = f.frame.intrinsics.fx if f.frame.intrinsics is not None else args.fx
+        if fx is not None and fx not in told:
+            told.add(fx)
+            check_focal(forest, fx, f.frame.path)
     label = labeller(forest, args.segment, args.fx, args.min_body_fraction,
                      load_parts(args.parts, forest, args.segment))
     res = evaluate_real(label, frames, out_dir=args.out, colors=forest.meta.get("label_colors"),
@@ -146,6 +158,7 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
     from vhgen.forest.data import check_compatible, store_info
     from vhgen.forest.evaluate import evaluate, table
     from vhgen.forest.persons import table as persons_table
+    from vhgen.forest.trees import at_focal
 
     infos = [store_info(s) for s in args.stores]
     ref = check_compatible(infos, "test")
@@ -156,8 +169,11 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
                           f"was trained on {forest.meta.get('label_scheme')!r} "
                           f"({len(names)} parts)")
     check_focal(forest, ref.fx, ref.path)
+    forest = at_focal(forest, ref.fx, ref.fy)
     mask, how = None, "forest labels > 0"
     parts = load_parts(args.parts, forest, args.segment)
+    if parts is not None and parts is not forest:
+        parts = at_focal(parts, ref.fx, ref.fy)
     if args.segment:
         lab = labeller(forest, True, None, args.min_body_fraction, parts)
         how = called_by(forest, args.min_body_fraction, parts)
@@ -257,22 +273,45 @@ class Labeller:
                               "segmentation stage finds)")
         self.forest, self.segment, self.fx = forest, segment, fx
         self.predictor = Predictor(forest)
+        self.parts_forest = parts
         self.parts = Predictor(parts, parts_only=True) if parts is not None else None
         self.seg = segmenter(min_body_fraction)
         self.stage = person_stage_of(forest, min_body_fraction)
+        self._at: dict[tuple[float, float], tuple[Any, Any]] = {}
+
+    def predictors(self, intr: Any) -> tuple[Any, Any]:
+        """(forest, parts) predictors for frames of intrinsics ``intr`` (None: the training
+        camera's): the probes scaled to its focal length (:func:`vhgen.forest.trees.at_focal`),
+        built once per focal length."""
+        from vhgen.forest.trees import Predictor, at_focal
+
+        if intr is None:
+            return self.predictor, self.parts
+        key = (float(intr.fx), float(intr.fy))
+        if key not in self._at:
+            f = at_focal(self.forest, *key)
+            parts = self.parts
+            if self.parts_forest is not None:
+                p = at_focal(self.parts_forest, *key)
+                if p is not self.parts_forest:
+                    parts = Predictor(p, parts_only=True)
+            self._at[key] = (self.predictor if f is self.forest else Predictor(f), parts)
+        return self._at[key]
 
     def people(self, depth_mm: Any, intr: Any, labels: Any = None) -> tuple[Any, Any]:
-        """(labels (H, W) uint8 after every stage, instances (H, W) uint8 or None)."""
+        """(labels (H, W) uint8 after every stage, instances (H, W) uint8 or None); the
+        forests' probes follow the focal length of ``intr``."""
         import numpy as np
 
         depth = np.asarray(depth_mm)
+        predictor, parts = self.predictors(intr)
         if labels is None:
-            labels = self.predictor.predict(depth)
+            labels = predictor.predict(depth)
         if not self.segment:
             return labels, None
         inst = self.seg.instances(depth, intr, labels, self.stage)
-        if self.parts is not None:
-            return self.parts.predict(np.where(inst > 0, depth, 0)), inst
+        if parts is not None:
+            return parts.predict(np.where(inst > 0, depth, 0)), inst
         return self.seg.apply(depth, intr, labels, self.stage, people=inst), inst
 
     def __call__(self, frame: Any) -> Any:
@@ -300,7 +339,10 @@ def _cmd_label(args: argparse.Namespace) -> int:
                           "segmentation stage's)")
     lab = labeller(forest, args.segment, fx, args.min_body_fraction,
                    load_parts(args.parts, forest, args.segment))
-    labels, inst = lab.people(frame.depth_mm, frame_intrinsics(frame, forest, fx))
+    intr = frame_intrinsics(frame, forest, fx)
+    if args.fx is not None and frame.intrinsics is not None:  # --fx over the cloud's
+        intr = dataclasses.replace(intr, fx=float(args.fx), fy=float(args.fx))
+    labels, inst = lab.people(frame.depth_mm, intr)
     if args.instances:
         ipath = Path(args.instances)
         ipath.parent.mkdir(parents=True, exist_ok=True)
@@ -494,7 +536,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         "alone measured (as a pipeline with background subtraction feeds the "
                         "forest; the synthetic counterpart of --people-only)")
     e.add_argument("--fx", type=A.float_range(0, lo_open=True),
-                   help="training focal length of PCL trees (for the focal-length check)")
+                   help="focal length (px) of the camera of the --real/--nobody/--people-only "
+                        "frames that do not record one (16-bit PNG; a PCD's is recovered; "
+                        "default: the forest's training one): the forest's probes are scaled "
+                        "to it (PCL tree files record no training focal length: theirs never "
+                        "are)")
     e.set_defaults(func=_cmd_eval)
 
     lb = fsub.add_parser("label", help="label a depth image (organized PCD or 16-bit mm PNG)")
@@ -506,8 +552,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     lb.add_argument("-o", "--output", required=True, type=A.output_path(".png"),
                     help="label PNG (palette; value = class)")
     lb.add_argument("--fx", type=A.float_range(0, lo_open=True),
-                    help="focal length of the depth camera (px): warn if it differs from "
-                         "the training one (default for a PCD: the recovered one)")
+                    help="focal length of the depth camera (px; default: a PCD's recovered "
+                         "one, else the forest's training one): the forest's probes are "
+                         "scaled to it")
     lb.add_argument("--segment", action="store_true",
                     help="remove floor and walls, cluster the rest, and keep body parts "
                          "only in candidates the person stage (or the forest's vote) "

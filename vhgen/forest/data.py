@@ -182,6 +182,23 @@ def cut_out_view(depth_mm: np.ndarray, truth: np.ndarray, classes: np.ndarray
     return np.where(keep, depth_mm, 0).astype(depth_mm.dtype)
 
 
+def zoom_view(depth_mm: np.ndarray, labels: np.ndarray, zoom: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) depth and labels as a pinhole camera of ``zoom`` times the focal length (the
+    same centre and size) sees the scene, or the same camera a scene ``zoom`` times the
+    size at the same depths: the nearest pixel of the frame; what falls outside it has
+    no measurement (depth 0, label 0). The depths do not change."""
+    if zoom == 1.0:
+        return depth_mm, labels
+    h, w = depth_mm.shape
+    ys = np.floor((np.arange(h) + 0.5 - h / 2) / zoom + h / 2).astype(np.int64)
+    xs = np.floor((np.arange(w) + 0.5 - w / 2) / zoom + w / 2).astype(np.int64)
+    inside = ((ys >= 0) & (ys < h))[:, None] & ((xs >= 0) & (xs < w))[None]
+    yi, xi = np.clip(ys, 0, h - 1), np.clip(xs, 0, w - 1)
+    return (np.where(inside, depth_mm[yi][:, xi], 0).astype(depth_mm.dtype),
+            np.where(inside, labels[yi][:, xi], 0).astype(labels.dtype))
+
+
 # scene classes that are not free-standing things: the room's surfaces and what hangs on
 # them, and people with what they wear and carry (vhgen.scene.geometry's class names)
 NOT_THINGS = ("background", "floor", "wall", "person", "window", "curtain", "door",

@@ -216,6 +216,34 @@ class Predictor:
         return out
 
 
+FOCAL_TOLERANCE_PX = 0.5  # focal lengths closer than this are the same camera
+
+
+def at_focal(forest: Forest, fx: float | None, fy: float | None = None) -> Forest:
+    """The forest for frames of a camera of focal lengths ``fx``, ``fy`` (px; ``fy``
+    defaults to ``fx``): its probe offsets, pixel-metres of the training camera (meta
+    ``fx``/``fy``), scaled by ``fx / fx_train`` across and ``fy / fy_train`` down, and
+    rounded, so that every probe reaches as far on the body as in training. The forest
+    itself when ``fx`` or the training focal length is unknown, or they agree within
+    :data:`FOCAL_TOLERANCE_PX`."""
+    tx = forest.meta.get("fx")
+    if fx is None or tx is None:
+        return forest
+    ty = forest.meta.get("fy") or tx
+    fy = fx if fy is None else fy
+    if (abs(float(fx) - float(tx)) <= FOCAL_TOLERANCE_PX
+            and abs(float(fy) - float(ty)) <= FOCAL_TOLERANCE_PX):
+        return forest
+    ratio = np.array([fx / tx, fy / ty, fx / tx, fy / ty], np.float64)
+    info = np.iinfo(np.int16)
+    offsets = np.clip(np.rint(forest.offsets.astype(np.float64) * ratio),
+                      info.min, info.max).astype(forest.offsets.dtype)
+    meta = {**forest.meta, "fx": float(fx), "fy": float(fy),
+            "trained_focal": [float(tx), float(ty)]}
+    return Forest(offsets, forest.thresh, forest.left, forest.depth, forest.counts,
+                  forest.roots, meta, forest.person_stage)
+
+
 def truncate(forest: Forest, depth: int) -> Forest:
     """The forest cut at ``depth``: nodes at that depth become leaves (their training
     histograms kept). Level-wise growth draws the same samples and candidates per level
