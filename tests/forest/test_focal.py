@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tests.forest.conftest import two_boxes
+from vhgen.errors import ForestError
 from vhgen.executor import InlinePool
 from vhgen.forest.data import zoom_view
 from vhgen.forest.train import ImageShard, TrainParams, grow_forest
@@ -92,3 +93,31 @@ def test_label_scales_the_probes_to_fx(tmp_path, capsys):
         assert ("scaled by 1.600" in err) == (fx is not None)
         got[fx] = (np.array(Image.open(out))[body] == lt[0][body]).mean()
     assert got["840"] > 0.97 and got["840"] > got[None] + 0.05
+
+
+def test_the_person_stage_learns_from_the_vote_at_its_stores_focal_length(tmp_path,
+                                                                          monkeypatch):
+    """train_person_stage labels each store's frames with the forest scaled to that
+    store's focal length, as forest eval does (the stage learns the vote it will see)."""
+    import vhgen.forest.trees as trees
+    from tests.forest.conftest import write_store
+    from vhgen.forest.from_stores import train_person_stage
+
+    d, lab = two_boxes(24, seed=1)
+    forest = train(d, lab)
+    forest.meta.update({"label_names": ["a", "b"], "stores": []})
+    dz, lz = zoomed(*two_boxes(6, seed=5), 1.6)
+    store = write_store(tmp_path / "near.zarr", dz, lz, fx=840.0)
+    asked = []
+    real = trees.at_focal
+
+    def spy(f, fx, fy=None):
+        asked.append((fx, fy))
+        return real(f, fx, fy)
+
+    monkeypatch.setattr(trees, "at_focal", spy)
+    try:
+        train_person_stage(forest, [store], frames=6, trees=2, cropped=False)
+    except ForestError:
+        pass  # two boxes are no people: what matters is the forest the frames were labelled by
+    assert asked == [(840.0, 840.0)]

@@ -209,35 +209,46 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     not a person for being alone. Such a stage finds more of those people
     (docs/forest.md)."""
     from vhgen.forest.segment import FEATURES, Segmenter
-    from vhgen.forest.trees import Predictor
+    from vhgen.forest.trees import Predictor, at_focal
 
     chosen = person_stage_frames(forest, stores, frames, seed)
     infos = {s: store_info(s) for s in {p for p, _, _ in chosen}}
     names = {s: class_names(s) for s in infos} if cut_out else {}
-    predictor = Predictor(forest)
+    # the forest's probes follow each store's focal length, as forest eval's do
+    scaled: dict[tuple[float, float], Predictor] = {}
+    for info in infos.values():
+        if (info.fx, info.fy) not in scaled:
+            scaled[(info.fx, info.fy)] = Predictor(at_focal(forest, info.fx, info.fy))
+    by_store = {p: scaled[(v.fx, v.fy)] for p, v in infos.items()}
+
+    def predict(d: np.ndarray, part: list[tuple[str, int, int]]) -> np.ndarray:
+        if len({id(by_store[p]) for p, _, _ in part}) == 1:
+            return by_store[part[0][0]].predict(d)
+        return np.stack([by_store[p].predict(d[k]) for k, (p, _, _) in enumerate(part)])
+
     seg = Segmenter()
     xs, ys = [], []
     t0 = time.perf_counter()
     for s in range(0, len(chosen), 16):
         part = chosen[s:s + 16]
         depth, truth = read_frames(part)
-        labels = predictor.predict(depth)
+        labels = predict(depth, part)
         views = [(depth, labels, truth)]
         if cropped:
             cut = [cropped_view(depth[i], truth[i], np.random.default_rng(
                 np.random.SeedSequence([seed, _CROP_STREAM, s + i]))) for i in range(len(part))]
             vdepth = np.stack([d for d, _ in cut])
-            views.append((vdepth, predictor.predict(vdepth), np.stack([t for _, t in cut])))
+            views.append((vdepth, predict(vdepth, part), np.stack([t for _, t in cut])))
         if cut_out:
             classes = read_classes(part, depth.shape)
             odepth = cut_out_view(depth, truth, classes)
-            views.append((odepth, predictor.predict(odepth), truth))
+            views.append((odepth, predict(odepth, part), truth))
             # and its things alone, none a person: a thing with nothing around it is
             # not a person for being alone
             tdepth = np.stack([lone_things_view(depth[i], truth[i], classes[i],
                                                 names[path])
                                for i, (path, _, _) in enumerate(part)])
-            views.append((tdepth, predictor.predict(tdepth), np.zeros_like(truth)))
+            views.append((tdepth, predict(tdepth, part), np.zeros_like(truth)))
         for vd, vl, vt in views:
             for i, (path, _, _) in enumerate(part):
                 x, y = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
