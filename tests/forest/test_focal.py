@@ -93,6 +93,20 @@ def test_label_scales_the_probes_to_fx(tmp_path, capsys):
         assert ("scaled by 1.600" in err) == (fx is not None)
         got[fx] = (np.array(Image.open(out))[body] == lt[0][body]).mean()
     assert got["840"] > 0.97 and got["840"] > got[None] + 0.05
+    # a PCD says its camera's focal length itself, and --fx overrides what it says
+    from vhgen.camera import Intrinsics
+    from vhgen.depthfile import write_pcd
+
+    h, w = dt[0].shape
+    for said, fx, scaled in ((840.0, None, True), (525.0, "840", True), (525.0, None, False)):
+        pcd = write_pcd(tmp_path / "near.pcd", dt[0],
+                        Intrinsics(w, h, said, said, (w - 1) / 2, (h - 1) / 2))
+        out = tmp_path / "pcd.png"
+        code, _, err = run(capsys, "forest", "label", str(forest), str(pcd), "-o", str(out),
+                           *(["--fx", fx] if fx else []))
+        right = (np.array(Image.open(out))[body] == lt[0][body]).mean()
+        assert code == 0 and ("scaled by 1.600" in err) == scaled
+        assert (right > 0.97) == scaled, (said, fx, right)
 
 
 def test_the_person_stage_learns_from_the_vote_at_its_stores_focal_length(tmp_path,
