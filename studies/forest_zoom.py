@@ -41,10 +41,8 @@ def body_share(predictor, depth: np.ndarray, mask: np.ndarray, zooms: list[float
 
 
 def main() -> None:
-    import zarr
-
     from vhgen.depthfile import depth_files, read_depth
-    from vhgen.forest.data import read_classes, read_frames, store_info
+    from vhgen.forest.data import read_classes, read_frames, read_instances, store_info
     from vhgen.forest.from_stores import cut_out_view
     from vhgen.forest.trees import Forest, Predictor
 
@@ -59,7 +57,6 @@ def main() -> None:
     info = store_info(args.store)
     if not info.has_classes:
         raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
-    instances = zarr.open_group(args.store, mode="r")["instances"]
     count = min(args.frames, info.num_frames)
     head = " | ".join(f"x{z:g}" for z in zooms)
     for path in args.forests:
@@ -69,8 +66,9 @@ def main() -> None:
             part = [(args.store, i, 0) for i in range(s, min(s + 8, count))]
             depth, truth = read_frames(part)
             cut = cut_out_view(depth, truth, read_classes(part, depth.shape))
+            instances, _ = read_instances(part, truth)
             for i in range(len(part)):
-                inst = instances[s + i]
+                inst = instances[i]
                 for p in np.unique(inst)[1:]:
                     mask = (inst == p) & (cut[i] > 0)
                     if mask.sum() >= 1500:  # people, not slivers at the frame's edge
