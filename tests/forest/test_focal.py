@@ -91,6 +91,8 @@ def test_label_scales_the_probes_to_fx(tmp_path, capsys):
                            *(["--fx", fx] if fx else []))
         assert code == 0
         assert ("scaled by 1.600" in err) == (fx is not None)
+        # a PNG records no focal length: said, unless --fx gives it
+        assert ("near.png: no focal length recorded" in err) == (fx is None)
         got[fx] = (np.array(Image.open(out))[body] == lt[0][body]).mean()
     assert got["840"] > 0.97 and got["840"] > got[None] + 0.05
     # a PCD says its camera's focal length itself, and --fx overrides what it says
@@ -106,6 +108,7 @@ def test_label_scales_the_probes_to_fx(tmp_path, capsys):
                            *(["--fx", fx] if fx else []))
         right = (np.array(Image.open(out))[body] == lt[0][body]).mean()
         assert code == 0 and ("scaled by 1.600" in err) == scaled
+        assert "no focal length recorded" not in err  # a PCD records its own
         assert (right > 0.97) == scaled, (said, fx, right)
 
 
@@ -135,3 +138,25 @@ def test_the_person_stage_learns_from_the_vote_at_its_stores_focal_length(tmp_pa
     except ForestError:
         pass  # two boxes are no people: what matters is the forest the frames were labelled by
     assert asked == [(840.0, 840.0)]
+
+
+def test_eval_says_once_that_png_frames_record_no_focal_length(tmp_path, capsys):
+    from PIL import Image
+
+    from tests.forest.conftest import write_store
+    from tests.forest.test_cli import SMALL, run
+
+    d, lab = two_boxes(12, seed=3)
+    store = write_store(tmp_path / "boxes.zarr", d, lab)
+    forest = tmp_path / "f.npz"
+    assert run(capsys, "forest", "train", store, "--out", str(forest), *SMALL)[0] == 0
+    frames = tmp_path / "people"
+    frames.mkdir()
+    for i in range(3):
+        Image.fromarray(d[i]).save(frames / f"f{i}.png")
+    code, _, err = run(capsys, "forest", "eval", str(forest), "--people-only", str(frames))
+    assert code == 0 and err.count("no focal length recorded") == 1
+    assert "(and 2 more frames)" in err and "--fx" in err
+    code, _, err = run(capsys, "forest", "eval", str(forest), "--people-only", str(frames),
+                       "--fx", "525")
+    assert code == 0 and "focal length" not in err

@@ -65,6 +65,16 @@ def check_focal(forest: Any, fx: float | None, where: str) -> None:
               "(offsets are pixel-metres of the training camera)")
 
 
+def note_unknown_focal(forest: Any, path: str, more: int = 0) -> None:
+    """Say that a frame records no focal length and is read as the training camera's."""
+    train_fx = forest.meta.get("fx")
+    if train_fx is None:
+        return
+    others = f" (and {more} more frames)" if more else ""
+    _note(f"{path}{others}: no focal length recorded; read as the forest's training camera "
+          f"(fx={float(train_fx):g} px): give the camera's with --fx")
+
+
 def _params(args: argparse.Namespace) -> Any:
     from vhgen.forest.train import TrainParams
 
@@ -137,14 +147,17 @@ def _eval_real(forest: Any, args: argparse.Namespace) -> dict:
 
     frames = load_real_frames(args.real, args.nobody, args.masks, warn=_warn,
                               people_only=args.people_only)
+    label = labeller(forest, args.segment, args.fx, args.min_body_fraction,
+                     load_parts(args.parts, forest, args.segment))
     told = set()
     for f in frames:
         fx = f.frame.intrinsics.fx if f.frame.intrinsics is not None else args.fx
         if fx is not None and fx not in told:
             told.add(fx)
             check_focal(forest, fx, f.frame.path)
-    label = labeller(forest, args.segment, args.fx, args.min_body_fraction,
-                     load_parts(args.parts, forest, args.segment))
+    unknown = [f.frame.path for f in frames if f.frame.intrinsics is None]
+    if unknown and args.fx is None:
+        note_unknown_focal(forest, unknown[0], len(unknown) - 1)
     res = evaluate_real(label, frames, out_dir=args.out, colors=forest.meta.get("label_colors"),
                         num_classes=forest.num_classes)
     res["segment"] = bool(args.segment)
@@ -333,12 +346,14 @@ def _cmd_label(args: argparse.Namespace) -> int:
     frame = read_label_input(args.depth)
     fx = args.fx if args.fx is not None else (
         frame.intrinsics.fx if frame.intrinsics is not None else None)
-    check_focal(forest, fx, args.depth)
     if args.instances and not args.segment:
         raise ConfigError(None, "--instances", "needs --segment (the people are the "
                           "segmentation stage's)")
     lab = labeller(forest, args.segment, fx, args.min_body_fraction,
                    load_parts(args.parts, forest, args.segment))
+    check_focal(forest, fx, args.depth)
+    if fx is None:
+        note_unknown_focal(forest, args.depth)
     intr = frame_intrinsics(frame, forest, fx)
     if args.fx is not None and frame.intrinsics is not None:  # --fx over the cloud's
         intr = dataclasses.replace(intr, fx=float(args.fx), fy=float(args.fx))
