@@ -37,7 +37,7 @@ def main() -> None:
     from vhgen.forest.data import read_classes, read_frames, store_info
     from vhgen.forest.from_stores import cut_out_view, stage_rows
     from vhgen.forest.segment import FEATURES, Segmenter, feature_columns
-    from vhgen.forest.trees import Forest, Predictor, at_focal
+    from vhgen.forest.trees import Forest, predictors_at_focal
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("forest")
@@ -47,8 +47,9 @@ def main() -> None:
     ap.add_argument("--fx", type=float, default=None)
     args = ap.parse_args()
     forest = Forest.load(args.forest)
-    pred, seg = Predictor(forest), Segmenter()
+    at, seg = predictors_at_focal(forest), Segmenter()
     info = store_info(args.store)
+    pred = at(info.fx, info.fy)
     if not info.has_classes:
         raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
     body, depth_m = FEATURES.index("body"), FEATURES.index("depth_m")
@@ -83,7 +84,7 @@ def main() -> None:
     for path in depth_files(args.people_only):
         frame = read_depth(path)
         intr = frame_intrinsics(frame, forest, args.fx)
-        labels = Predictor(at_focal(forest, intr.fx, intr.fy)).predict(frame.depth_mm)
+        labels = at(intr.fx, intr.fy).predict(frame.depth_mm)
         comp, x = seg.features(frame.depth_mm, intr, labels)
         p = (stage.predict_proba(x[:, feature_columns(stage.features)])
              if stage is not None else np.full(len(x), np.nan))

@@ -279,37 +279,17 @@ class Labeller:
 
     def __init__(self, forest: Any, segment: bool, fx: float | None = None,
                  min_body_fraction: float | None = None, parts: Any = None):
-        from vhgen.forest.trees import Predictor
+        from vhgen.forest.trees import predictors_at_focal
 
         if parts is not None and not segment:
             raise ForestError("--parts: needs --segment (it labels the people the "
                               "segmentation stage finds)")
         self.forest, self.segment, self.fx = forest, segment, fx
-        self.predictor = Predictor(forest)
-        self.parts_forest = parts
-        self.parts = Predictor(parts, parts_only=True) if parts is not None else None
+        # the forests' predictors at each frame camera's focal length
+        self.predictor = predictors_at_focal(forest)
+        self.parts = predictors_at_focal(parts, parts_only=True) if parts is not None else None
         self.seg = segmenter(min_body_fraction)
         self.stage = person_stage_of(forest, min_body_fraction)
-        self._at: dict[tuple[float, float], tuple[Any, Any]] = {}
-
-    def predictors(self, intr: Any) -> tuple[Any, Any]:
-        """(forest, parts) predictors for frames of intrinsics ``intr`` (None: the training
-        camera's): the probes scaled to its focal length (:func:`vhgen.forest.trees.at_focal`),
-        built once per focal length."""
-        from vhgen.forest.trees import Predictor, at_focal
-
-        if intr is None:
-            return self.predictor, self.parts
-        key = (float(intr.fx), float(intr.fy))
-        if key not in self._at:
-            f = at_focal(self.forest, *key)
-            parts = self.parts
-            if self.parts_forest is not None:
-                p = at_focal(self.parts_forest, *key)
-                if p is not self.parts_forest:
-                    parts = Predictor(p, parts_only=True)
-            self._at[key] = (self.predictor if f is self.forest else Predictor(f), parts)
-        return self._at[key]
 
     def people(self, depth_mm: Any, intr: Any, labels: Any = None) -> tuple[Any, Any]:
         """(labels (H, W) uint8 after every stage, instances (H, W) uint8 or None); the
@@ -317,14 +297,13 @@ class Labeller:
         import numpy as np
 
         depth = np.asarray(depth_mm)
-        predictor, parts = self.predictors(intr)
         if labels is None:
-            labels = predictor.predict(depth)
+            labels = self.predictor(intr.fx, intr.fy).predict(depth)
         if not self.segment:
             return labels, None
         inst = self.seg.instances(depth, intr, labels, self.stage)
-        if parts is not None:
-            return parts.predict(np.where(inst > 0, depth, 0)), inst
+        if self.parts is not None:
+            return self.parts(intr.fx, intr.fy).predict(np.where(inst > 0, depth, 0)), inst
         return self.seg.apply(depth, intr, labels, self.stage, people=inst), inst
 
     def __call__(self, frame: Any) -> Any:

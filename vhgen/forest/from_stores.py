@@ -209,17 +209,14 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     not a person for being alone. Such a stage finds more of those people
     (docs/forest.md)."""
     from vhgen.forest.segment import FEATURES, Segmenter
-    from vhgen.forest.trees import Predictor, at_focal
+    from vhgen.forest.trees import predictors_at_focal
 
     chosen = person_stage_frames(forest, stores, frames, seed)
     infos = {s: store_info(s) for s in {p for p, _, _ in chosen}}
     names = {s: class_names(s) for s in infos} if cut_out else {}
     # the forest's probes follow each store's focal length, as forest eval's do
-    scaled: dict[tuple[float, float], Predictor] = {}
-    for info in infos.values():
-        if (info.fx, info.fy) not in scaled:
-            scaled[(info.fx, info.fy)] = Predictor(at_focal(forest, info.fx, info.fy))
-    by_store = {p: scaled[(v.fx, v.fy)] for p, v in infos.items()}
+    at = predictors_at_focal(forest)
+    by_store = {p: at(v.fx, v.fy) for p, v in infos.items()}
 
     def predict(d: np.ndarray, part: list[tuple[str, int, int]]) -> np.ndarray:
         if len({id(by_store[p]) for p, _, _ in part}) == 1:

@@ -15,6 +15,7 @@ together (:class:`Predictor`).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -242,6 +243,26 @@ def at_focal(forest: Forest, fx: float | None, fy: float | None = None) -> Fores
             "trained_focal": [float(tx), float(ty)]}
     return Forest(offsets, forest.thresh, forest.left, forest.depth, forest.counts,
                   forest.roots, meta, forest.person_stage)
+
+
+def predictors_at_focal(forest: Forest, parts_only: bool = False
+                        ) -> Callable[[float, float], Predictor]:
+    """(fx, fy) -> the :class:`Predictor` of ``forest`` at that camera's focal lengths
+    (:func:`at_focal`), built once per focal length; one predictor serves every camera
+    within :data:`FOCAL_TOLERANCE_PX` of the training one."""
+    cache: dict[tuple[float, float] | None, Predictor] = {}
+
+    def at(fx: float, fy: float) -> Predictor:
+        key = (float(fx), float(fy))
+        if key not in cache:
+            f = at_focal(forest, fx, fy)
+            own = None if f is forest else key  # the training camera's: one predictor
+            if own not in cache:
+                cache[own] = Predictor(f, parts_only=parts_only)
+            cache[key] = cache[own]
+        return cache[key]
+
+    return at
 
 
 def truncate(forest: Forest, depth: int) -> Forest:
