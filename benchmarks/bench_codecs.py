@@ -8,14 +8,16 @@ by ``vhgen generate configs/scenes/cluttered_room.yaml --max-frames 128``) and c
 every frame alone, as the store's one-frame inner chunks are, with each candidate. A
 candidate is ``zstd-LEVEL`` (zarr's ``ZstdCodec``) or ``blosc-CNAME-CLEVEL-SHUFFLE``
 (zarr's ``BloscCodec``: cname zstd, lz4, lz4hc, zlib; shuffle noshuffle, shuffle or
-bitshuffle). Both are codecs of the zarr v3 specification that zarr 3.0.8 (the floor)
-writes and reads. Times are one core: blosc's own threads are off, as they are in the
-store reader's decode threads. The candidates of an array take turns for ``--repeat``
-passes over the frames and each cell is a candidate's fastest pass. ``x store``: the
-candidate's bytes over the store's own for that array (its inner chunks, from the shard
-indexes). ``--against`` compares two stores of the same frames written with different
-codecs instead: ms per frame to decode each array through the training reader
-(``vhgen.store.shards.ShardReader``, one thread), the stores taking turns.
+bitshuffle), both codecs of the zarr v3 specification that zarr 3.0.8 (the floor) writes
+and reads, or, for uint16 arrays, ``palette-zstd-LEVEL``: vhgen's ``vhgen.palette`` filter
+(:mod:`vhgen.store.palette`) before zstd. Times are one core: blosc's own threads are
+off, as they are in the store reader's decode threads. The candidates of an array take
+turns for ``--repeat`` passes over the frames and each cell is a candidate's fastest
+pass. ``x store``: the candidate's bytes over the store's own for that array (its inner
+chunks, from the shard indexes). ``--against`` compares two stores of the same frames
+written with different codecs instead: ms per frame to decode each array through the
+training reader (``vhgen.store.shards.ShardReader``, one thread), the stores taking
+turns.
 """
 
 from __future__ import annotations
@@ -35,10 +37,37 @@ sys.path.insert(0, str(REPO))
 DEFAULT_CODECS = {
     "uint16": ["zstd-3", "zstd-6", "zstd-9", "zstd-11", "zstd-12", "zstd-15", "zstd-16",
                "zstd-19", "blosc-zstd-3-shuffle", "blosc-zstd-5-shuffle",
-               "blosc-zstd-5-bitshuffle", "blosc-lz4-5-shuffle"],
+               "blosc-zstd-5-bitshuffle", "blosc-lz4-5-shuffle", "palette-zstd-3",
+               "palette-zstd-5", "palette-zstd-7", "palette-zstd-11", "palette-zstd-16"],
     "uint8": ["zstd-3", "zstd-6", "zstd-9", "zstd-12", "zstd-15", "zstd-19",
               "blosc-zstd-5-bitshuffle", "blosc-lz4-5-noshuffle"],
 }
+
+
+class PaletteZstd:
+    """``vhgen.palette`` then zstd, as a store's depth chunks are written and read."""
+
+    def __init__(self, level: int):
+        import numcodecs
+
+        self.zstd = numcodecs.Zstd(level=level)
+
+    def encode(self, frame: np.ndarray) -> bytes:
+        from vhgen.store import palette
+
+        return self.zstd.encode(palette.encode(frame))
+
+    def decode(self, chunk: bytes, out: np.ndarray) -> np.ndarray:
+        import numcodecs.zstd
+
+        from vhgen.store import palette
+        from vhgen.store.shards import zstd_content_size
+
+        size = zstd_content_size(chunk)  # into scratch, as the store reader does
+        plane = (numcodecs.zstd.decompress(chunk) if size is None
+                 else numcodecs.zstd.decompress(chunk, palette.scratch(size)))
+        palette.decode_into(plane, out)
+        return out
 
 
 def numcodec(name: str, itemsize: int) -> Any:
@@ -46,6 +75,8 @@ def numcodec(name: str, itemsize: int) -> Any:
     import numcodecs
 
     kind, *rest = name.split("-")
+    if kind == "palette" and itemsize == 2 and len(rest) == 2 and rest[0] == "zstd":
+        return PaletteZstd(int(rest[1]))
     if kind == "zstd":
         return numcodecs.Zstd(level=int(rest[0]))
     if kind == "blosc":
@@ -53,7 +84,8 @@ def numcodec(name: str, itemsize: int) -> Any:
         code = {"noshuffle": numcodecs.Blosc.NOSHUFFLE, "shuffle": numcodecs.Blosc.SHUFFLE,
                 "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[shuffle]
         return numcodecs.Blosc(cname=cname, clevel=int(clevel), shuffle=code)
-    raise SystemExit(f"unknown candidate {name!r}: zstd-LEVEL or blosc-CNAME-CLEVEL-SHUFFLE")
+    raise SystemExit(f"unknown candidate {name!r}: zstd-LEVEL, blosc-CNAME-CLEVEL-SHUFFLE "
+                     "or (uint16) palette-zstd-LEVEL")
 
 
 def stored_bytes(store: Path, name: str, frames: int) -> float | None:

@@ -52,6 +52,10 @@ def test_wheel_ships_every_module_config_and_shader(wheel):
     assert "vhgen/render/shaders/skinning.glsl" in want
     assert "vhgen/configs/scenes/default.yaml" in want
     assert not want - names, f"missing from the wheel: {sorted(want - names)}"
+    # zarr finds the depth codec of vhgen's stores through this entry point
+    (eps,) = [n for n in names if n.endswith(".dist-info/entry_points.txt")]
+    text = zipfile.ZipFile(wheel).read(eps).decode()
+    assert "[zarr.codecs]" in text and "vhgen.palette = vhgen.store.palette:PaletteCodec" in text
 
 
 def test_installed_wheel_runs_the_default_job_elsewhere(wheel, tmp_path, asset_dir):

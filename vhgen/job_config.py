@@ -89,6 +89,7 @@ class JobConfig:
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
     codec: str = "zstd"  # output.codec: zstd (smallest) or lz4 (fastest to read)
+    palette: bool = True  # output.palette: uint16 arrays through vhgen.palette (zstd only)
     arrays: tuple[str, ...] = DEFAULT_ARRAYS  # output.arrays: the arrays the store holds
 
     @property
@@ -168,11 +169,14 @@ class JobConfig:
                                   f"carried things: the scene has {len(names)} classes")
             avatars = replace(avatars, outfit=avatars.outfit.with_class(cid))
         out = d.get("output") or {}
-        check_keys(out, {"frames_per_shard", "compression_level", "codec", "arrays"}, set(),
-                   path, "output.")
+        check_keys(out, {"frames_per_shard", "compression_level", "codec", "arrays",
+                         "palette"}, set(), path, "output.")
         codec = out.get("codec", "zstd")
         if codec not in ("zstd", "lz4"):
             raise ConfigError(path, "output.codec", f"must be zstd or lz4, got {codec!r}")
+        palette = out.get("palette", codec == "zstd")
+        if not isinstance(palette, bool):
+            raise ConfigError(path, "output.palette", f"must be true or false, got {palette!r}")
         ren = d.get("render") or {}
         check_keys(ren, {"backend", "skinning", "gpus_per_worker"}, set(), path, "render.")
         skinning = ren.get("skinning", "lbs")
@@ -237,7 +241,8 @@ class JobConfig:
             compression_level=_num(out, "compression_level", path, "output.", lo=1, hi=22,
                                    integer=True) if "compression_level" in out else None,
             backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
-            source=str(path), gpus_per_worker=gpus, codec=codec, arrays=arrays)
+            source=str(path), gpus_per_worker=gpus, codec=codec, arrays=arrays,
+            palette=palette)
 
 
 def _arrays(value: Any, sensor: SensorConfig, src) -> tuple[str, ...]:

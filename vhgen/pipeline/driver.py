@@ -178,7 +178,7 @@ def run_job(cfg: JobConfig, out: str | Path, *, ray_address: str | None = None,
                     height=intr.height, width=intr.width,
                     frames_per_shard=cfg.frames_per_shard,
                     compression_level=cfg.compression_level,
-                    arrays=cfg.arrays, codec=cfg.codec)
+                    arrays=cfg.arrays, codec=cfg.codec, palette=cfg.palette)
         done = completed_shards(out)
         todo = [t for t in plan.tasks if t.shard not in done]
         log.info("%d frames in %d shards (%d to do), %d poses from %d motion files, %s "

@@ -85,7 +85,7 @@ def _short(v: Any) -> str:
 def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool, *,
                 height: int, width: int, frames_per_shard: int,
                 compression_level: int | None, arrays: Sequence[str],
-                codec: str = "zstd") -> None:
+                codec: str = "zstd", palette: bool | None = None) -> None:
     """Create the store for ``num_frames`` frames (H x W, shards of ``frames_per_shard``)
     holding ``arrays`` with ``attrs``, or, when resuming an existing one (whose config the
     caller checked before any work, :func:`check_same_config`), remove the partial files a
@@ -104,6 +104,6 @@ def open_output(out: Path, attrs: dict[str, Any], num_frames: int, resume: bool,
             create_store(out, num_frames=num_frames, height=height, width=width,
                          frames_per_shard=frames_per_shard,
                          compression_level=compression_level, attrs=attrs,
-                         overwrite=True, arrays=arrays, codec=codec)
+                         overwrite=True, arrays=arrays, codec=codec, palette=palette)
     except OSError as e:
         raise StoreError(os_error_line(e, out, "cannot create the store")) from None

@@ -2,9 +2,10 @@
 
 A vhgen array is sharded along frames (:func:`vhgen.store.zarr_store.create_store`): shard
 ``s`` of array ``name`` is one file, ``name/c/<s>/0/0``, holding ``frames_per_shard`` inner
-chunks of one frame each (bytes little-endian, then zstd, or blosc for stores written with
-``output.codec: lz4``) and, at its end, the shard index: one (offset, nbytes) uint64 pair
-per inner chunk, then the index's crc32c. zarr-python reads one frame through its async
+chunks of one frame each (bytes little-endian, for uint16 arrays then
+:mod:`vhgen.store.palette`, then zstd, or blosc for stores written with ``output.codec:
+lz4``) and, at its end, the shard index: one (offset, nbytes) uint64 pair per inner
+chunk, then the index's crc32c. zarr-python reads one frame through its async
 codec pipeline in ~2 ms of Python per frame and array, several times the decode itself.
 Here a frame costs a ``pread`` of its chunk (the index is read once and cached) and one
 decode straight into the caller's array, and the frames of a request are decoded in
@@ -54,6 +55,7 @@ class ArrayLayout:
     index_crc: bool
     compressor: str  # "zstd", "blosc" or "" (bytes only)
     swap: bool  # stored byte order differs from this machine's
+    palette: bool = False  # vhgen.palette before the compressor (uint16 arrays)
 
     @property
     def frame_shape(self) -> tuple[int, ...]:
@@ -91,8 +93,14 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         return None
     inner = [c.get("name") for c in conf.get("codecs", [])]
     index = [c.get("name") for c in conf.get("index_codecs", [])]
-    if inner not in (["bytes"], ["bytes", "zstd"], ["bytes", "blosc"]) or index not in (
-            ["bytes"], ["bytes", "crc32c"]):
+    palette = inner[1:2] == ["vhgen.palette"]
+    if palette:
+        if dtype != np.uint16 or conf["codecs"][1].get("configuration", {}).get(
+                "typesize", 2) != 2:
+            return None
+        inner = inner[:1] + inner[2:]
+    if inner not in (["bytes", "zstd"], ["bytes", "blosc"], *([] if palette else [["bytes"]])
+                     ) or index not in (["bytes"], ["bytes", "crc32c"]):
         return None
     endian = conf["codecs"][0].get("configuration", {}).get("endian", "little")
     index_endian = conf["index_codecs"][0].get("configuration", {}).get("endian", "little")
@@ -103,7 +111,8 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         fill_value=meta["fill_value"], separator=separator,
         index_at_end=conf.get("index_location", "end") == "end",
         index_crc=index[-1] == "crc32c", compressor=inner[-1] if len(inner) > 1 else "",
-        swap=dtype.itemsize > 1 and endian != sys.byteorder)
+        swap=dtype.itemsize > 1 and endian != sys.byteorder and not palette,
+        palette=palette)
 
 
 def blosc_content_size(chunk: bytes | memoryview) -> int | None:
@@ -272,6 +281,8 @@ class ShardReader:
         import numcodecs.blosc  # type: ignore[import-untyped]
         import numcodecs.zstd  # type: ignore[import-untyped]
 
+        from vhgen.store import palette
+
         path = layout.shard_path(shard)
         try:
             fd = os.open(path, os.O_RDONLY)
@@ -295,12 +306,18 @@ class ShardReader:
                     raise self._fail(layout, shard, f"frame {frame}: chunk cut short")
                 if layout.compressor:
                     zstd = layout.compressor == "zstd"
+                    codec = numcodecs.zstd if zstd else numcodecs.blosc
                     stated = (zstd_content_size if zstd else blosc_content_size)(chunk)
-                    if stated is not None and stated != want:
+                    if stated is not None and stated != want and not layout.palette:
                         raise self._fail(layout, shard, f"frame {frame}: chunk decodes to "
                                          f"{stated} bytes, expected {want}")
                     try:
-                        (numcodecs.zstd if zstd else numcodecs.blosc).decompress(chunk, out)
+                        if layout.palette:  # values in native order: no swap after
+                            plane = (codec.decompress(chunk) if stated is None else
+                                     codec.decompress(chunk, palette.scratch(stated)))
+                            palette.decode_into(plane, out)
+                        else:
+                            codec.decompress(chunk, out)
                     except (RuntimeError, ValueError) as e:
                         raise self._fail(layout, shard, f"frame {frame}: {e}") from None
                 elif nbytes != want:

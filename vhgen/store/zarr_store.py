@@ -53,9 +53,11 @@ CODECS = ("zstd", "lz4")
 # more (85.3 kB against 86.1 at 11) for 2-6x the encode time, which a GPU node's CPU
 # workers pay on every frame, and 16+ (another 15%) take as long as a frame; the uint8
 # arrays take level 12 (17-23% smaller, about a millisecond each to encode). Byte or bit
-# shuffling before zstd (blosc) made every array but instances larger. The codec of each
-# array is recorded in its zarr.json, which is what readers go by: stores written with
-# other levels or codecs read the same.
+# shuffling before zstd (blosc) made every array but instances larger. With the palette
+# (vhgen.store.palette, output.palette: the default with zstd) the uint16 arrays take
+# another 9-11% less at the same level and encode faster. The codecs of each array are
+# recorded in its zarr.json, which is what readers go by: stores written with other
+# levels or codecs read the same.
 ARRAYS: dict[str, tuple[str, int, int]] = {
     "depth": ("uint16", 0, 7),
     "labels": ("uint8", 0, 12),
@@ -69,26 +71,35 @@ REQUIRED_ARRAYS = ("depth", "labels")
 DEFAULT_ARRAYS = ("depth", "labels", "instances", "classes")
 
 
-def _codecs(codec: str, level: int, itemsize: int):
+def _codecs(codec: str, level: int, itemsize: int, palette: bool = False):
     """Compressors of one frame chunk. ``zstd`` (default): zstd at ``level``, the smallest;
     ``lz4``: blosc lz4 over bytes shuffled by ``itemsize``, about twice the size of zstd
-    3 on depth and three times faster to decode (the same values either way)."""
+    3 on depth and three times faster to decode (the same values either way). ``palette``:
+    uint16 frames go through :mod:`vhgen.store.palette` first (one byte a pixel)."""
     from zarr.codecs import BloscCodec, ZstdCodec
 
+    if codec not in CODECS:
+        raise StoreError(f"unknown codec {codec!r} (known: {', '.join(CODECS)})")
+    first = []
+    if palette and itemsize == 2:
+        from vhgen.store.palette import PaletteCodec, register
+
+        register()
+        first, itemsize = [PaletteCodec()], 1
     if codec == "zstd":
-        return [ZstdCodec(level=level)]
-    if codec == "lz4":
-        return [BloscCodec(cname="lz4", clevel=5, shuffle="shuffle", typesize=itemsize)]
-    raise StoreError(f"unknown codec {codec!r} (known: {', '.join(CODECS)})")
+        return [*first, ZstdCodec(level=level)]
+    return [*first, BloscCodec(cname="lz4", clevel=5, shuffle="shuffle" if itemsize > 1
+                               else "noshuffle", typesize=itemsize)]
 
 
 def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
                  frames_per_shard: int, attrs: dict, compression_level: int | None = None,
                  overwrite: bool = False, arrays: Sequence[str] = DEFAULT_ARRAYS,
-                 codec: str = "zstd") -> None:
+                 codec: str = "zstd", palette: bool | None = None) -> None:
     """Create the group and its empty ``arrays`` (driver only, before any worker writes);
-    ``codec``: see :func:`_codecs`; ``compression_level``: the zstd level of every array
-    (None: each array's level in :data:`ARRAYS`)."""
+    ``codec``, ``palette``: see :func:`_codecs` (``palette`` None: with zstd);
+    ``compression_level``: the zstd level of every array (None: each array's level in
+    :data:`ARRAYS`)."""
     import zarr
 
     path = Path(path)
@@ -104,7 +115,9 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
                           chunks=(1, height, width),
                           shards=(frames_per_shard, height, width),
                           compressors=_codecs(codec, compression_level or level,
-                                              np.dtype(dtype).itemsize), fill_value=fill,
+                                              np.dtype(dtype).itemsize,
+                                              codec == "zstd" if palette is None else palette),
+                          fill_value=fill,
                           dimension_names=("frame", "y", "x"))
     root.attrs.update({"class_names": list(SCENE_CLASSES), **attrs,
                        "vhgen_contract": CONTRACT_VERSION})
@@ -114,9 +127,12 @@ def create_store(path: str | Path, *, num_frames: int, height: int, width: int,
 def open_store(path: str | Path, mode: Literal["r", "r+"] = "r") -> Any:
     import zarr
 
+    from vhgen.store.palette import register
+
     path = Path(path)
     if not (path / "zarr.json").is_file():
         raise StoreError(f"{path} is not a Zarr v3 group (no zarr.json)")
+    register()  # installed vhgen registers it by entry point; this covers a bare checkout
     return zarr.open_group(str(path), mode=mode, zarr_format=3)
 
 

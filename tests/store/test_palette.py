@@ -1,0 +1,180 @@
+"""vhgen.palette (depth's lossless filter before zstd): exact round trips, smaller stores,
+readable by plain zarr through the entry point, and damaged chunks named."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import write_synthetic_store
+from vhgen.errors import ShardError
+from vhgen.store import palette
+from vhgen.store.shards import ShardReader, array_layout
+
+REAL = Path(__file__).resolve().parents[3] / "shared" / "real"
+
+
+def _sensor_like(rng, n=4, h=96, w=128) -> np.ndarray:
+    """Depth as a structured-light sensor gives it: millimetres of disparity quantised to
+    1/8 px (fx 580, baseline 75 mm), a plane, a nearer box and noise, and holes."""
+    y, x = np.mgrid[:h, :w]
+    z = 1500.0 + 8.0 * y + 2.0 * x + np.where((abs(x - 60) < 20) & (abs(y - 50) < 25), -600, 0)
+    out = []
+    for _ in range(n):
+        disp = 580 * 75 / (z + rng.normal(0, 4, z.shape))
+        mm = np.round(580 * 75 / (np.round(disp * 8) / 8)).astype(np.uint16)
+        mm[rng.random(z.shape) < 0.05] = 0
+        out.append(mm)
+    return np.stack(out)
+
+
+@pytest.mark.parametrize("values", [
+    "sensor", "few", "many", "all", "odd", "single", "empty"])
+def test_round_trip_is_exact(values):
+    rng = np.random.default_rng(1)
+    data = {"sensor": lambda: _sensor_like(rng, 1)[0],
+            "few": lambda: rng.choice([0, 700, 4095], (48, 64)).astype(np.uint16),
+            "many": lambda: rng.integers(0, 600, (48, 64)).astype(np.uint16),  # 2 planes
+            "all": lambda: np.arange(65536, dtype=np.uint16)[rng.permutation(65536)],
+            "odd": lambda: rng.integers(1000, 1100, (7, 9)).astype(np.uint16),
+            "single": lambda: np.array([65535], np.uint16),
+            "empty": lambda: np.zeros((0, 5), np.uint16)}[values]()
+    enc = palette.encode(data)
+    n = len(np.unique(data))
+    assert enc.size == 4 + 2 * n + data.size * (2 if n > 256 else 1)
+    for buf in (enc, enc.tobytes()):
+        out = np.full_like(data, 12345)
+        palette.decode_into(buf, out)
+        assert np.array_equal(out, data)
+
+
+def test_damaged_chunks_raise():
+    data = np.random.default_rng(2).integers(0, 40, (16, 16)).astype(np.uint16)
+    enc = palette.encode(data)
+    out = np.empty_like(data)
+    with pytest.raises(palette.PaletteError, match="expected"):
+        palette.decode_into(enc[:-3], out)  # cut short
+    with pytest.raises(palette.PaletteError, match="header"):
+        palette.decode_into(enc[:2], out)
+    bad = enc.copy()
+    bad[-1] = 250  # an index past the 40 values
+    with pytest.raises(palette.PaletteError, match="past its"):
+        palette.decode_into(bad, out)
+    with pytest.raises(TypeError):
+        palette.decode_into(enc, out.astype(np.int32))
+
+
+def _real_frames() -> np.ndarray:
+    """Real PrimeSense frames (PCD, millimetres) from ../shared/real, and one Kinect v1
+    PNG of skeltrack/ (its person alone, the rest 0)."""
+    from vhgen.depthfile import read_depth, read_png_mm
+
+    pcd = [np.round(np.nan_to_num(read_depth(REAL / f"capture000{i}.pcd").depth_m) * 1000)
+           .astype(np.uint16) for i in (1, 2, 3, 4)]
+    png = read_png_mm(REAL / "skeltrack" / "depth-data-1028894671.png")
+    return np.stack([*pcd, png, pcd[0][::-1].copy()])
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    """The same real frames written with and without the palette (zstd 7)."""
+    from vhgen.store.zarr_store import create_store, write_shard
+
+    frames = _real_frames()
+    labels = (frames > 1500).astype(np.uint8)
+    stores = {}
+    for use in (True, False):
+        path = tmp_path_factory.mktemp("palette") / f"{use}.zarr"
+        create_store(path, num_frames=6, height=480, width=640, frames_per_shard=2,
+                     attrs={"label_names": ["a"]}, palette=use)
+        for s in range(3):
+            part = slice(2 * s, 2 * s + 2)
+            write_shard(path, s, 2, frames[part], labels[part],
+                        extra={"instances": labels[part], "classes": labels[part]})
+        stores[use] = path
+    return frames, stores
+
+
+def _bytes(path, name):
+    return sum(f.stat().st_size for f in (path / name / "c").rglob("*") if f.is_file())
+
+
+def test_store_is_smaller_and_reads_the_same(pair):
+    import zarr
+
+    frames, stores = pair
+    codecs = json.loads((stores[True] / "depth" / "zarr.json").read_text())
+    inner = [c["name"] for c in codecs["codecs"][0]["configuration"]["codecs"]]
+    assert inner == ["bytes", "vhgen.palette", "zstd"]
+    labels = json.loads((stores[True] / "labels" / "zarr.json").read_text())
+    assert "vhgen.palette" not in json.dumps(labels)  # uint8 arrays: zstd alone
+    plain = json.loads((stores[False] / "depth" / "zarr.json").read_text())
+    assert "vhgen.palette" not in json.dumps(plain)
+    # real frames hold 120-160 values (1/8 px disparity steps): 8-11% fewer bytes here
+    assert _bytes(stores[True], "depth") < 0.95 * _bytes(stores[False], "depth")
+    for use in (True, False):
+        assert np.array_equal(zarr.open_group(str(stores[use]), mode="r")["depth"][:],
+                              frames)
+        reader = ShardReader(stores[use], ["depth"], threads=2)
+        layout = array_layout(stores[use], "depth")
+        assert layout is not None and layout.palette is use
+        out = reader.empty("depth", 6)
+        order = np.random.default_rng(4).permutation(6)
+        reader.read_into([("depth", int(f), out[k]) for k, f in enumerate(order)])
+        assert np.array_equal(out, frames[order])
+
+
+def test_plain_zarr_reads_it_through_the_entry_point(pair):
+    """A user's own zarr code, vhgen never imported: the installed entry point finds the
+    codec."""
+    frames, stores = pair
+    code = ("import sys, zarr, numpy as np; "
+            f"a = zarr.open_group({str(stores[True])!r}, mode='r')['depth'][:]; "
+            "print(int(a.astype(np.int64).sum()))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert int(run.stdout.split()[-1]) == int(frames.astype(np.int64).sum())
+
+
+def test_damaged_palette_chunk_names_the_shard(pair, tmp_path):
+    import shutil
+
+    _, stores = pair
+    out = tmp_path / "d.zarr"
+    shutil.copytree(stores[True], out)
+    shard = out / "depth" / "c" / "1" / "0" / "0"
+    data = bytearray(shard.read_bytes())
+    data[20:60] = bytes(40)  # inside frame 2's zstd frame
+    shard.write_bytes(bytes(data))
+    reader = ShardReader(out, ["depth"], threads=1)
+    found: list[ShardError] = []
+    got = reader.empty("depth", 6)
+    reader.read_into([("depth", f, got[f]) for f in range(6)], errors=found)
+    assert len(found) == 1 and found[0].shard == 1 and "depth" in str(found[0])
+    assert np.array_equal(got[4:], pair[0][4:])  # the other shards still read
+
+
+def test_config_palette_flag(tmp_path):
+    from vhgen.errors import ConfigError
+    from vhgen.job_config import JobConfig
+
+    base = (tmp_path / "c.yaml")
+    for text, want in (("", True), ("  palette: false\n", False),
+                       ("  codec: lz4\n", False), ("  codec: lz4\n  palette: true\n", True)):
+        base.write_text("name: t\nmotions: [a.bvh]\noutput:\n  frames_per_shard: 4\n" + text)
+        assert JobConfig.load(base).palette is want
+    base.write_text("name: t\nmotions: [a.bvh]\noutput:\n  palette: maybe\n")
+    with pytest.raises(ConfigError, match="output.palette"):
+        JobConfig.load(base)
+
+
+def test_synthetic_store_uses_it_by_default(tmp_path):
+    path = write_synthetic_store(tmp_path / "s.zarr", frames=4, frames_per_shard=2)
+    layout = array_layout(path, "depth")
+    assert layout is not None and layout.palette
