@@ -4,8 +4,8 @@
         [--workers 2] [--batch 32] [--threads N] [--arrays depth labels ...]
 
 Without ``--store`` it first makes one: the recommended training scene
-(configs/forest/people_room.yaml: shards of 16 frames, zstd 3, or ``--codec lz4``)
-limited to ``--frames`` frames, in a temporary folder (``--out`` keeps it). Every shard
+(configs/forest/people_room.yaml: shards of 16 frames, the default codecs, or ``--codec
+lz4``) limited to ``--frames`` frames, in a temporary folder (``--out`` keeps it). Every shard
 file is read once before measuring, so all rows see a warm page cache.
 
 Rows: three orders, each over every frame once at most (one epoch), stopped after
@@ -51,7 +51,7 @@ def make_store(out: Path, frames: int, backend: str, codec: str) -> None:
 
     cfg = JobConfig.load(REPO / "configs" / "forest" / "people_room.yaml", backend=backend,
                          num_workers=1)
-    run_job(replace(cfg, codec=codec), out, max_frames=frames)
+    run_job(replace(cfg, codec=codec, palette=codec == "zstd"), out, max_frames=frames)
 
 
 def _order(ds, order: str, rank: int, ranks: int) -> list[np.ndarray]:
