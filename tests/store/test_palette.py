@@ -178,3 +178,17 @@ def test_synthetic_store_uses_it_by_default(tmp_path):
     path = write_synthetic_store(tmp_path / "s.zarr", frames=4, frames_per_shard=2)
     layout = array_layout(path, "depth")
     assert layout is not None and layout.palette
+
+
+def test_codec_refuses_other_dtypes(tmp_path):
+    import zarr
+
+    from vhgen.store.palette import PaletteCodec
+
+    with pytest.raises(ValueError, match="uint16"):
+        zarr.create_array(str(tmp_path / "a.zarr"), shape=(4, 4), chunks=(2, 2),
+                          dtype="float32", compressors=[PaletteCodec()])
+    ok = zarr.create_array(str(tmp_path / "b.zarr"), shape=(4, 4), chunks=(2, 2),
+                           dtype="uint16", compressors=[PaletteCodec()])
+    ok[:] = np.arange(16, dtype=np.uint16).reshape(4, 4) * 1000
+    assert np.array_equal(ok[:], np.arange(16).reshape(4, 4) * 1000)

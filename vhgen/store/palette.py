@@ -102,8 +102,8 @@ def decode_into(encoded: np.ndarray | bytes | memoryview, out: np.ndarray) -> No
 # numpy calls around a take did not.
 @numba.njit(cache=True, nogil=True)
 def _lookup8(plane, table, out):  # pragma: no cover  (compiled)
-    """out[i] = table[plane[i]]; returns an index past the table (then 0 is written), or
-    -1."""
+    """out[i] = table[plane[i]]; returns an index past the table (table[0] is written
+    for it), or -1."""
     n = table.shape[0]
     bad = -1
     for i in range(out.shape[0]):
@@ -150,6 +150,12 @@ class PaletteCodec(BytesBytesCodec):
             raise ValueError(f"{NAME}: typesize must be 2 (uint16), got {typesize!r}")
         object.__setattr__(self, "typesize", 2)
 
+    def validate(self, *, shape: Any, dtype: Any, chunk_grid: Any) -> None:
+        # zarr >= 3.1 passes its own dtype wrapper, 3.0 a numpy dtype
+        native = dtype.to_native_dtype() if hasattr(dtype, "to_native_dtype") else dtype
+        if np.dtype(native).itemsize != 2:
+            raise ValueError(f"{NAME} encodes 2-byte integers (uint16), not {native}")
+
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PaletteCodec:
         if data.get("name") != NAME:
@@ -163,7 +169,8 @@ class PaletteCodec(BytesBytesCodec):
         size = int(np.prod(chunk_spec.shape))
         out = np.empty(size, np.uint16)
         decode_into(chunk_bytes.as_numpy_array(), out)
-        return chunk_spec.prototype.buffer.from_array_like(out.astype("<u2").view(np.uint8))
+        return chunk_spec.prototype.buffer.from_array_like(
+            out.astype("<u2", copy=False).view(np.uint8))
 
     def _encode_sync(self, chunk_bytes: Buffer, chunk_spec: ArraySpec) -> Buffer | None:
         data = chunk_bytes.as_numpy_array()
