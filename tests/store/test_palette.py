@@ -192,3 +192,14 @@ def test_codec_refuses_other_dtypes(tmp_path):
                            dtype="uint16", compressors=[PaletteCodec()])
     ok[:] = np.arange(16, dtype=np.uint16).reshape(4, 4) * 1000
     assert np.array_equal(ok[:], np.arange(16).reshape(4, 4) * 1000)
+
+
+def test_inspect_names_the_codecs(pair):
+    from vhgen.store.inspect import inspect_store
+
+    _, stores = pair
+    text = inspect_store(stores[True]).format()
+    assert "depth: bytes > vhgen.palette > zstd 7" in text and "where vhgen is installed" in text
+    plain = inspect_store(stores[False])
+    assert plain.to_dict()["codecs"]["depth"] == "bytes > zstd 7"
+    assert "where vhgen is installed" not in plain.format()

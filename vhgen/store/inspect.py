@@ -67,6 +67,7 @@ class InspectReport:
     valid: dict[str, float] = field(default_factory=dict)
     frames_checked: int = 0
     manifest_form: int = 0  # 1 or 2 (see vhgen.store.manifest), 0 if there is no manifest
+    codecs: dict[str, str] = field(default_factory=dict)  # array -> its frames' codecs
 
     @property
     def ok(self) -> bool:
@@ -83,7 +84,22 @@ class InspectReport:
                            "pixels": int(c), "fraction": c / total if total else 0.0}
                           for k, c in enumerate(self.histogram.tolist())],
             "valid": self.valid, "manifest_form": self.manifest_form,
+            "codecs": self.codecs,
         }
+
+    def _codec_lines(self) -> list[str]:
+        if not self.codecs:
+            return []
+        groups: dict[str, list[str]] = {}
+        for name, codecs in self.codecs.items():
+            groups.setdefault(codecs, []).append(name)
+        line = "codecs: " + "; ".join(f"{', '.join(n)}: {c}" for c, n in groups.items())
+        from vhgen.store.palette import NAME as PALETTE  # (imports numba: only here)
+
+        if any(PALETTE in c for c in self.codecs.values()):
+            return [line, f"({PALETTE} is vhgen's codec: zarr reads it where vhgen is "
+                          "installed; output.palette: false writes zarr-spec codecs only)"]
+        return [line]
 
     def format(self) -> str:
         """A plain-text report: summary, histogram table, valid-pixel statistics, defects."""
@@ -92,6 +108,7 @@ class InspectReport:
                  f"arrays " + ", ".join(f"{k} {v}" for k, v in self.arrays.items()),
                  f"{self.frames_checked} frames read and checked against the manifest",
                  f"manifest form {self.manifest_form}: {_FORMS.get(self.manifest_form, '')}",
+                 *self._codec_lines(),
                  "",
                  f"{'label':>5}  {'part':<20} {'pixels':>14} {'% of body':>9}"]
         body = int(self.histogram[1:].sum()) if len(self.histogram) else 0
@@ -119,6 +136,24 @@ _FORMS = {0: "no readable manifest",
           1: "the old form (people.footprint a fixed-size list; where it is null, only "
              "pyarrow >= 26 or vhgen's own reader opens it)",
           2: "portable (no null inside a fixed-size list; any Parquet reader opens it)"}
+
+
+def _codec_names(meta_path: Path) -> str:
+    """The codecs of one array's frames, in order ("bytes > vhgen.palette > zstd 7"), as
+    its zarr.json names them (inside the shards when it is sharded)."""
+    try:
+        codecs = json.loads(meta_path.read_text())["codecs"]
+        if len(codecs) == 1 and codecs[0].get("name") == "sharding_indexed":
+            codecs = codecs[0]["configuration"]["codecs"]
+        names = []
+        for c in codecs:
+            conf = c.get("configuration") or {}
+            level = conf.get("level", conf.get("clevel"))
+            cname = f" {conf['cname']}" if "cname" in conf else ""
+            names.append(f"{c['name']}{cname}" + (f" {level}" if level is not None else ""))
+        return " > ".join(names)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return "unknown"
 
 
 def _shard_file(store: Path, name: str, shard: int) -> Path:
@@ -212,6 +247,7 @@ def inspect_store(path: str | Path) -> InspectReport:
             continue
         a = root[name]
         rep.arrays[name] = list(a.shape)
+        rep.codecs[name] = _codec_names(store / name / "zarr.json")
         if str(a.dtype) != dtype:
             rep.defects.append(f"array {name!r}: dtype {a.dtype}, the contract says {dtype}")
         if a.ndim != 3:
