@@ -89,7 +89,7 @@ class JobConfig:
     overrides: dict[str, Any] = field(default_factory=dict)
     gpus_per_worker: float = 0.0  # Ray GPUs per frame actor; > 0 renders on that GPU (EGL)
     codec: str = "zstd"  # output.codec: zstd (smallest) or lz4 (fastest to read)
-    palette: bool = True  # output.palette: uint16 arrays through vhgen.palette (zstd only)
+    palette: bool = True  # output.palette: uint16 arrays through vhgen.palette (default: with zstd)
     arrays: tuple[str, ...] = DEFAULT_ARRAYS  # output.arrays: the arrays the store holds
 
     @property

@@ -94,7 +94,7 @@ class InspectReport:
         for name, codecs in self.codecs.items():
             groups.setdefault(codecs, []).append(name)
         line = "codecs: " + "; ".join(f"{', '.join(n)}: {c}" for c, n in groups.items())
-        from vhgen.store.palette import NAME as PALETTE  # (imports numba: only here)
+        from vhgen.store.palette import NAME as PALETTE  # (imports zarr: only here)
 
         if any(PALETTE in c for c in self.codecs.values()):
             return [line, f"({PALETTE} is vhgen's codec: zarr reads it where vhgen is "
