@@ -63,10 +63,9 @@ class PaletteZstd:
         from vhgen.store import palette
         from vhgen.store.shards import zstd_content_size
 
-        size = zstd_content_size(chunk)  # into scratch, as the store reader does
-        plane = (numcodecs.zstd.decompress(chunk) if size is None
-                 else numcodecs.zstd.decompress(chunk, palette.scratch(size)))
-        palette.decode_into(plane, out)
+        # as the store reader does
+        palette.decompress_into(numcodecs.zstd.decompress, chunk, zstd_content_size(chunk),
+                                out)
         return out
 
 

@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 
 NAME = "vhgen.palette"
 _HEADER = 4
-_local = threading.local()  # per thread: scratch bytes (scratch())
+_local = threading.local()  # per thread: scratch bytes (decompress_into)
 
 
 class PaletteError(ValueError):
@@ -97,13 +97,19 @@ def decode_into(encoded: np.ndarray | bytes | memoryview, out: np.ndarray) -> No
         raise PaletteError(f"palette chunk: index {bad} past its {n} values")
 
 
-def scratch(nbytes: int) -> np.ndarray:
-    """``nbytes`` of this thread's scratch space (kept, grown as needed), for decoding a
-    compressed chunk into before :func:`decode_into`."""
+def decompress_into(decompress: Any, chunk: bytes, nbytes: int | None,
+                    out: np.ndarray) -> None:
+    """Decode a compressed palette chunk into ``out``: ``decompress(chunk[, dest])`` (a
+    numcodecs zstd or blosc ``decompress``) into this thread's scratch space when the
+    chunk states its decoded size ``nbytes`` (kept, grown as needed: no allocation per
+    frame), then :func:`decode_into`."""
+    if nbytes is None:
+        decode_into(decompress(chunk), out)
+        return
     buf = getattr(_local, "scratch", None)
     if buf is None or buf.size < nbytes:
         buf = _local.scratch = np.empty(nbytes, np.uint8)
-    return buf[:nbytes]
+    decode_into(decompress(chunk, buf[:nbytes]), out)
 
 
 @dataclass(frozen=True)

@@ -313,9 +313,7 @@ class ShardReader:
                                          f"{stated} bytes, expected {want}")
                     try:
                         if layout.palette:  # values in native order: no swap after
-                            plane = (codec.decompress(chunk) if stated is None else
-                                     codec.decompress(chunk, palette.scratch(stated)))
-                            palette.decode_into(plane, out)
+                            palette.decompress_into(codec.decompress, chunk, stated, out)
                         else:
                             codec.decompress(chunk, out)
                     except (RuntimeError, ValueError) as e:
