@@ -1,7 +1,8 @@
-"""How the part forest's vote changes with the camera's focal length (or a person's size).
+"""How the part forest's vote changes with the camera's focal length (or a person's size),
+and with the angle the camera sees a person at.
 
     python studies/forest_zoom.py FOREST.npz [FOREST.npz ...] --store STORE [--frames 160]
-        [--people-only DIR ...] [--zooms 0.8,0.9,1,1.1,1.25]
+        [--people-only DIR ...] [--zooms 0.8,0.9,1,1.1,1.25] [--tilts=-20,-10,0,10,20,30]
 
 A camera with ``z`` times the training focal length sees a person ``z`` times larger at the
 same depth; so does the training camera a person ``z`` times the size. For every person of
@@ -11,7 +12,11 @@ else measured), and for every frame of ``--people-only`` (real people whose back
 their source removed), the frame is zoomed about its centre by each ``z``
 (:func:`vhgen.forest.data.zoom_view`) and the share of the person's pixels each forest
 calls a body part is printed: the median over the vhgen people by their median depth, and
-per real frame. Nothing is chosen here (docs/forest.md, "The camera's focal length").
+per real frame. ``--tilts``: a second table, each person's points turned about the level
+axis across the image through their median depth by each angle (degrees; positive: the
+lower body farther, as a camera looking further down sees a person, or a person leaning
+forward) and seen again through the same camera (:func:`tilt_view`). Nothing is chosen
+here (docs/forest.md, "The camera's focal length" and "Leaning back").
 """
 
 from __future__ import annotations
@@ -40,11 +45,50 @@ def body_share(predictor, depth: np.ndarray, mask: np.ndarray, zooms: list[float
     return out
 
 
+def tilt_view(depth_mm: np.ndarray, mask: np.ndarray, fx: float, degrees: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) depth of the ``mask`` pixels alone, their points turned by ``degrees`` about the
+    level axis through their median depth on the optical axis (y down, z forward: a
+    positive angle takes points below it farther), seen again by a pinhole camera of focal
+    length ``fx`` centred on the image (nearest pixel, the nearest point wins; a pixel left
+    empty among measured neighbours takes the farthest of them), and the new mask."""
+    h, w = depth_mm.shape
+    v, u = np.nonzero(mask & (depth_mm > 0))
+    z = depth_mm[v, u] / 1000.0
+    cx, cy = (w - 1) / 2, (h - 1) / 2
+    x, y = (u - cx) * z / fx, (v - cy) * z / fx
+    zc, a = float(np.median(z)), np.radians(degrees)
+    y2 = y * np.cos(a) - (z - zc) * np.sin(a)
+    z2 = y * np.sin(a) + (z - zc) * np.cos(a) + zc
+    u2 = np.rint(x * fx / z2 + cx).astype(np.int64)
+    v2 = np.rint(y2 * fx / z2 + cy).astype(np.int64)
+    ok = (u2 >= 0) & (u2 < w) & (v2 >= 0) & (v2 < h) & (z2 > 0.1)
+    out = np.full((h, w), np.iinfo(np.int64).max)
+    np.minimum.at(out, (v2[ok], u2[ok]), np.rint(z2[ok] * 1000).astype(np.int64))
+    seen = out < np.iinfo(np.int64).max
+    out = np.where(seen, out, 0)
+    from scipy import ndimage
+
+    gaps = ndimage.binary_closing(seen) & ~seen
+    out[gaps] = ndimage.maximum_filter(out, 3)[gaps]
+    return out.astype(np.uint16), out > 0
+
+
+def tilt_share(predictor, depth: np.ndarray, mask: np.ndarray, fx: float,
+               tilts: list[float]) -> list[float]:
+    """The share of ``mask``'s pixels called a body part, tilted by each angle."""
+    out = []
+    for t in tilts:
+        d, m = tilt_view(depth, mask, fx, t)
+        out.append(float((predictor.predict(d)[m] > 0).mean()) if m.any() else np.nan)
+    return out
+
+
 def main() -> None:
     from vhgen.depthfile import depth_files, read_depth
     from vhgen.forest.data import read_classes, read_frames, read_instances, store_info
     from vhgen.forest.from_stores import cut_out_view
-    from vhgen.forest.trees import Forest, Predictor
+    from vhgen.forest.trees import Forest, Predictor, predictors_at_focal
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("forests", nargs="+")
@@ -52,16 +96,22 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=160)
     ap.add_argument("--people-only", nargs="*", default=[])
     ap.add_argument("--zooms", default="0.8,0.9,1,1.1,1.25")
+    ap.add_argument("--tilts", default="", help="angles, degrees (a second table)")
+    ap.add_argument("--fx", type=float, default=None,
+                    help="focal length of the --people-only frames: the forest's probes "
+                    "follow it (default: the training camera's)")
     args = ap.parse_args()
     zooms = [float(z) for z in args.zooms.split(",")]
+    tilts = [float(t) for t in args.tilts.split(",")] if args.tilts else []
     info = store_info(args.store)
     if not info.has_classes:
         raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
     count = min(args.frames, info.num_frames)
-    head = " | ".join(f"x{z:g}" for z in zooms)
     for path in args.forests:
-        predictor = Predictor(Forest.load(path))
+        forest = Forest.load(path)
+        predictor = Predictor(forest)
         rows: list[tuple[float, list[float]]] = []
+        tilted: list[tuple[float, list[float]]] = []
         for s in range(0, count, 8):
             part = [(args.store, i, 0) for i in range(s, min(s + 8, count))]
             depth, truth = read_frames(part)
@@ -72,20 +122,40 @@ def main() -> None:
                 for p in np.unique(inst)[1:]:
                     mask = (inst == p) & (cut[i] > 0)
                     if mask.sum() >= 1500:  # people, not slivers at the frame's edge
-                        rows.append((float(np.median(cut[i][mask])) / 1000,
-                                     body_share(predictor, cut[i], mask, zooms)))
+                        z = float(np.median(cut[i][mask])) / 1000
+                        rows.append((z, body_share(predictor, cut[i], mask, zooms)))
+                        if tilts:
+                            tilted.append((z, tilt_share(predictor, cut[i], mask, info.fx,
+                                                         tilts)))
+        # the real frames through the forest at their camera's focal length when --fx says
+        # it (at_focal), else at the training one
+        on_real = (predictors_at_focal(forest)(args.fx, args.fx) if args.fx else predictor)
+        real = [np.asarray(read_depth(f).depth_mm) for f in depth_files(args.people_only)]
+        names = [Path(f).name for f in depth_files(args.people_only)]
         print(f"{path}: share of each person called a body part, the frame zoomed "
               f"(median over people; {count} frames of {args.store}, people cut out alone)")
-        print(f"| people at | n | {head} |")
-        print("|---|---" + "|---" * len(zooms) + "|")
-        for lo, hi in zip(BINS_M[:-1], BINS_M[1:], strict=True):
-            b = np.array([r for z, r in rows if lo <= z < hi]).reshape(-1, len(zooms))
-            cells = " | ".join(f"{v:.2f}" for v in np.median(b, axis=0)) if len(b) else "-"
-            print(f"| {lo:g}-{hi:g} m | {len(b)} | {cells} |")
-        for frame_path in depth_files(args.people_only):
-            d = np.asarray(read_depth(frame_path).depth_mm)
-            cells = " | ".join(f"{v:.2f}" for v in body_share(predictor, d, d > 0, zooms))
-            print(f"| {Path(frame_path).name} | 1 | {cells} |")
+        table(rows, zooms, "x", [(n, body_share(on_real, d, d > 0, zooms))
+                                 for n, d in zip(names, real, strict=True)])
+        if tilts:
+            fx = args.fx or info.fx
+            print(f"{path}: the same, each person tilted (degrees; positive: the lower body "
+                  f"farther; real frames seen at fx {fx:g} px)")
+            table(tilted, tilts, "", [(n, tilt_share(on_real, d, d > 0, fx, tilts))
+                                      for n, d in zip(names, real, strict=True)])
+
+
+def table(rows: list[tuple[float, list[float]]], columns: list[float], prefix: str,
+          real: list[tuple[str, list[float]]]) -> None:
+    """A markdown table: the median of ``rows`` (depth, shares) by depth bin, then
+    ``real`` (name, shares) one per line."""
+    print("| people at | n | " + " | ".join(f"{prefix}{c:g}" for c in columns) + " |")
+    print("|---|---" + "|---" * len(columns) + "|")
+    for lo, hi in zip(BINS_M[:-1], BINS_M[1:], strict=True):
+        b = np.array([r for z, r in rows if lo <= z < hi]).reshape(-1, len(columns))
+        cells = " | ".join(f"{v:.2f}" for v in np.median(b, axis=0)) if len(b) else "-"
+        print(f"| {lo:g}-{hi:g} m | {len(b)} | {cells} |")
+    for name, shares in real:
+        print(f"| {name} | 1 | " + " | ".join(f"{v:.2f}" for v in shares) + " |")
 
 
 if __name__ == "__main__":
