@@ -16,7 +16,8 @@ per real frame. ``--tilts``: a second table, each person's points turned about t
 axis across the image through their median depth by each angle (degrees; positive: the
 lower body farther, as a camera looking further down sees a person, or a person leaning
 forward) and seen again through the same camera (:func:`tilt_view`). Nothing is chosen
-here (docs/forest.md, "The camera's focal length" and "Leaning back").
+here (docs/forest.md, "The camera's focal length" and "What the real people's vote does
+and does not depend on").
 """
 
 from __future__ import annotations
