@@ -15,9 +15,10 @@ calls a body part is printed: the median over the vhgen people by their median d
 per real frame. ``--tilts``: a second table, each person's points turned about the level
 axis across the image through their median depth by each angle (degrees; positive: the
 lower body farther, as a camera looking further down sees a person, or a person leaning
-forward) and seen again through the same camera (:func:`tilt_view`). Nothing is chosen
-here (docs/forest.md, "The camera's focal length" and "What the real people's vote does
-and does not depend on").
+forward) and seen again through the same camera (:func:`tilt_view`: the store's camera;
+for the real frames one of ``--fx`` centred on the image). Nothing is chosen here
+(docs/forest.md, "The camera's focal length" and "What the real people's vote does and
+does not depend on").
 """
 
 from __future__ import annotations
@@ -33,59 +34,64 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 BINS_M = (0.0, 1.7, 3.0, np.inf)
 
 
-def body_share(predictor, depth: np.ndarray, mask: np.ndarray, zooms: list[float]) -> list[float]:
-    """The share of ``mask``'s pixels called a body part in ``depth`` zoomed by each zoom."""
-    from vhgen.forest.data import zoom_view
-
-    alone = np.where(mask, depth, 0).astype(np.uint16)
+def body_share(predictor, depth: np.ndarray, mask: np.ndarray, views: list) -> list[float]:
+    """The share of ``mask``'s pixels called a body part in each view of ``depth`` (a view:
+    (depth, mask) -> the new (depth, mask))."""
     out = []
-    for z in zooms:
-        d, m = zoom_view(alone, mask.astype(np.uint8), z)
-        labels = predictor.predict(d)
-        out.append(float((labels[m > 0] > 0).mean()) if (m > 0).any() else np.nan)
-    return out
-
-
-def tilt_view(depth_mm: np.ndarray, mask: np.ndarray, fx: float, degrees: float
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """(H, W) depth of the ``mask`` pixels alone, their points turned by ``degrees`` about the
-    level axis through their median depth on the optical axis (y down, z forward: a
-    positive angle takes points below it farther), seen again by a pinhole camera of focal
-    length ``fx`` centred on the image (nearest pixel, the nearest point wins; a pixel left
-    empty among measured neighbours takes the farthest of them), and the new mask."""
-    h, w = depth_mm.shape
-    v, u = np.nonzero(mask & (depth_mm > 0))
-    z = depth_mm[v, u] / 1000.0
-    cx, cy = (w - 1) / 2, (h - 1) / 2
-    x, y = (u - cx) * z / fx, (v - cy) * z / fx
-    zc, a = float(np.median(z)), np.radians(degrees)
-    y2 = y * np.cos(a) - (z - zc) * np.sin(a)
-    z2 = y * np.sin(a) + (z - zc) * np.cos(a) + zc
-    u2 = np.rint(x * fx / z2 + cx).astype(np.int64)
-    v2 = np.rint(y2 * fx / z2 + cy).astype(np.int64)
-    ok = (u2 >= 0) & (u2 < w) & (v2 >= 0) & (v2 < h) & (z2 > 0.1)
-    out = np.full((h, w), np.iinfo(np.int64).max)
-    np.minimum.at(out, (v2[ok], u2[ok]), np.rint(z2[ok] * 1000).astype(np.int64))
-    seen = out < np.iinfo(np.int64).max
-    out = np.where(seen, out, 0)
-    from scipy import ndimage
-
-    gaps = ndimage.binary_closing(seen) & ~seen
-    out[gaps] = ndimage.maximum_filter(out, 3)[gaps]
-    return out.astype(np.uint16), out > 0
-
-
-def tilt_share(predictor, depth: np.ndarray, mask: np.ndarray, fx: float,
-               tilts: list[float]) -> list[float]:
-    """The share of ``mask``'s pixels called a body part, tilted by each angle."""
-    out = []
-    for t in tilts:
-        d, m = tilt_view(depth, mask, fx, t)
+    for view in views:
+        d, m = view(np.where(mask, depth, 0).astype(np.uint16), mask)
         out.append(float((predictor.predict(d)[m] > 0).mean()) if m.any() else np.nan)
     return out
 
 
+def zoomed(z: float):
+    """The view of :func:`vhgen.forest.data.zoom_view` by ``z``."""
+    from vhgen.forest.data import zoom_view
+
+    def view(depth: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d, m = zoom_view(depth, mask.astype(np.uint8), z)
+        return d, m > 0
+
+    return view
+
+
+def tilted(intr, degrees: float):
+    """The view of :func:`tilt_view` by ``degrees`` through the camera ``intr``."""
+    return lambda depth, mask: tilt_view(depth, mask, intr, degrees)
+
+
+def tilt_view(depth_mm: np.ndarray, mask: np.ndarray, intr, degrees: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) depth of the ``mask`` pixels alone, their points (camera ``intr``) turned by
+    ``degrees`` about the level axis through their median depth on the optical axis (y
+    down, z forward: a positive angle takes points below it farther), seen again by the
+    same camera (nearest pixel, the nearest point wins; a pixel left empty among measured
+    neighbours takes the farthest of them), and the new mask."""
+    from scipy import ndimage
+
+    from vhgen.camera import backproject, project
+
+    keep = mask & (depth_mm > 0)
+    p = backproject(intr, depth_mm / 1000.0)[keep]
+    zc, a = float(np.median(p[:, 2])), np.radians(degrees)
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)],
+                     [0.0, np.sin(a), np.cos(a)]])
+    p = (p - [0.0, 0.0, zc]) @ turn.T + [0.0, 0.0, zc]
+    uv = np.rint(np.nan_to_num(project(intr, p), nan=-1.0)).astype(np.int64)
+    h, w = depth_mm.shape
+    ok = ((uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+          & (p[:, 2] > 0.1))
+    big = np.iinfo(np.int64).max
+    out = np.full((h, w), big)
+    np.minimum.at(out, (uv[ok, 1], uv[ok, 0]), np.rint(p[ok, 2] * 1000).astype(np.int64))
+    out = np.where(out < big, out, 0)
+    gaps = ndimage.binary_closing(out > 0) & (out == 0)
+    out[gaps] = ndimage.maximum_filter(out, 3)[gaps]
+    return out.astype(np.uint16), out > 0
+
+
 def main() -> None:
+    from vhgen.camera import Intrinsics
     from vhgen.depthfile import depth_files, read_depth
     from vhgen.forest.data import read_classes, read_frames, read_instances, store_info
     from vhgen.forest.from_stores import cut_out_view
@@ -108,11 +114,17 @@ def main() -> None:
     if not info.has_classes:
         raise SystemExit(f"{args.store}: no classes array (the cut-out views need it)")
     count = min(args.frames, info.num_frames)
+    real = [(Path(f).name, np.asarray(read_depth(f).depth_mm))
+            for f in depth_files(args.people_only)]
+    # the real frames' camera for the tilts: --fx (else the store's), centred on the image
+    h, w = real[0][1].shape if real else (info.intrinsics.height, info.intrinsics.width)
+    fx = args.fx or info.fx
+    real_intr = Intrinsics(w, h, fx, fx, (w - 1) / 2, (h - 1) / 2)
     for path in args.forests:
         forest = Forest.load(path)
         predictor = Predictor(forest)
         rows: list[tuple[float, list[float]]] = []
-        tilted: list[tuple[float, list[float]]] = []
+        turned: list[tuple[float, list[float]]] = []
         for s in range(0, count, 8):
             part = [(args.store, i, 0) for i in range(s, min(s + 8, count))]
             depth, truth = read_frames(part)
@@ -124,25 +136,23 @@ def main() -> None:
                     mask = (inst == p) & (cut[i] > 0)
                     if mask.sum() >= 1500:  # people, not slivers at the frame's edge
                         z = float(np.median(cut[i][mask])) / 1000
-                        rows.append((z, body_share(predictor, cut[i], mask, zooms)))
+                        rows.append((z, body_share(predictor, cut[i], mask,
+                                                   [zoomed(k) for k in zooms])))
                         if tilts:
-                            tilted.append((z, tilt_share(predictor, cut[i], mask, info.fx,
-                                                         tilts)))
+                            turned.append((z, body_share(predictor, cut[i], mask, [
+                                tilted(info.intrinsics, t) for t in tilts])))
         # the real frames through the forest at their camera's focal length when --fx says
         # it (at_focal), else at the training one
         on_real = (predictors_at_focal(forest)(args.fx, args.fx) if args.fx else predictor)
-        real = [np.asarray(read_depth(f).depth_mm) for f in depth_files(args.people_only)]
-        names = [Path(f).name for f in depth_files(args.people_only)]
         print(f"{path}: share of each person called a body part, the frame zoomed "
               f"(median over people; {count} frames of {args.store}, people cut out alone)")
-        table(rows, zooms, "x", [(n, body_share(on_real, d, d > 0, zooms))
-                                 for n, d in zip(names, real, strict=True)])
+        table(rows, zooms, "x", [(n, body_share(on_real, d, d > 0, [zoomed(z) for z in zooms]))
+                                 for n, d in real])
         if tilts:
-            fx = args.fx or info.fx
             print(f"{path}: the same, each person tilted (degrees; positive: the lower body "
-                  f"farther; real frames seen at fx {fx:g} px)")
-            table(tilted, tilts, "", [(n, tilt_share(on_real, d, d > 0, fx, tilts))
-                                      for n, d in zip(names, real, strict=True)])
+                  f"farther; real frames seen at fx {real_intr.fx:g} px)")
+            table(turned, tilts, "", [(n, body_share(on_real, d, d > 0, [
+                tilted(real_intr, t) for t in tilts])) for n, d in real])
 
 
 def table(rows: list[tuple[float, list[float]]], columns: list[float], prefix: str,
