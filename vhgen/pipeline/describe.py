@@ -13,11 +13,14 @@ from vhgen.camera import sample_camera
 from vhgen.pipeline.job import Job
 from vhgen.scene.background.people import layout_background
 from vhgen.scene.description import FrameDescription, Person
-from vhgen.scene.layout import layout_scene
+from vhgen.scene.layout import SharedLayout, fill_shared, layout_scene, layout_shared
 from vhgen.scene.placement import Disc
 
 # the scene stream: room and placements, spawned from the frame seed (see FrameDescription)
 _SCENE_STREAM = 0x5CE4E
+# the stream of a layout frames share (scene.layout_frames), spawned from the seed of its
+# first frame
+_SHARED_STREAM = 0x5A4ED
 FLOOR_SNAP_M = 0.10  # a lowest point closer than this to the floor is put on it
 # further people stand up to this much farther from the camera than its farthest distance
 _REACH_BEYOND_M = 1.5
@@ -38,6 +41,7 @@ class FrameDescriber:
         # poses were retargeted onto the unshaped base body; an avatar's root height
         # scales with its hip height so its feet stay on the floor
         self._base_hip_drop = job.base.hip_drop
+        self._shared: tuple[int, SharedLayout] | None = None  # the last shared layout
 
     def body(self, avatar_id: int) -> Body:
         """The avatar's shaped body (CPU), built on first use and kept in a least recently
@@ -112,7 +116,15 @@ class FrameDescriber:
         if sc.is_person_only:
             return FrameDescription(frame, seed, cam, (person,), (), None, noise_state)
         srng = np.random.default_rng(np.random.SeedSequence([seed, _SCENE_STREAM]))
-        reach = (job.cfg.camera.distance_m[0], job.cfg.camera.distance_m[1] + _REACH_BEYOND_M)
+        if sc.layout_frames > 1:
+            index = frame // sc.layout_frames
+            shared = self.shared_layout(index)
+            lay = fill_shared(srng, shared, sc, person, self)
+            return FrameDescription(frame, seed, shared.camera, lay.people, lay.static,
+                                    lay.room, noise_state, lay.props, lay.dropped,
+                                    clutter=lay.clutter, no_return=sc.no_return_ids,
+                                    layout=index)
+        reach = self._reach
         lay = layout_scene(srng, sc, cam, job.cfg.sensor.intrinsics, reach, person, self,
                            redraw=lambda k: np.random.default_rng(
                                np.random.SeedSequence([seed, _SCENE_STREAM, k])),
@@ -120,6 +132,34 @@ class FrameDescriber:
         return FrameDescription(frame, seed, cam, lay.people, lay.static, lay.room,
                                 noise_state, lay.props, lay.dropped, clutter=lay.clutter,
                                 no_return=sc.no_return_ids)
+
+    @property
+    def _reach(self) -> tuple[float, float]:
+        """The floor distances from the camera further people stand at."""
+        d = self.job.cfg.camera.distance_m
+        return (d[0], d[1] + _REACH_BEYOND_M)
+
+    def shared_layout(self, index: int) -> SharedLayout:
+        """Layout ``index`` of a job with ``scene.layout_frames`` N > 1, which frames
+        index * N .. index * N + N - 1 share: drawn from the seed of its first frame, so
+        any frame can be made again alone (the last one is kept: a shard's frames are
+        consecutive)."""
+        if self._shared is not None and self._shared[0] == index:
+            return self._shared[1]
+        job = self.job
+        first_seed = int(job.plan.seeds[index * job.cfg.scene.layout_frames])
+
+        def stream(*k: int) -> np.random.Generator:
+            return np.random.default_rng(np.random.SeedSequence([first_seed,
+                                                                 _SHARED_STREAM, *k]))
+
+        rng = stream()
+        cam = sample_camera(rng, job.cfg.camera)
+        shared = layout_shared(rng, job.cfg.scene, cam, job.cfg.sensor.intrinsics,
+                               self._reach, self, redraw=stream,
+                               library_seed=job.cfg.seed)
+        self._shared = (index, shared)
+        return shared
 
     def _on_background(self, frame: int, seed: int, rng: np.random.Generator,
                        person: Person) -> FrameDescription:

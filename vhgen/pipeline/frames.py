@@ -15,7 +15,7 @@ import json
 import logging
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -168,11 +168,13 @@ class FrameGenerator:
         pitch, roll = pitch_roll_deg(w2c)
         intr = self.cfg.sensor.intrinsics
         sc = self.cfg.scene
-        scene = None if sc.is_person_only else {
+        scene: dict[str, Any] | None = None if sc.is_person_only else {
             "floor": sc.floor, "room": desc.room.to_dict() if desc.room is not None else None,
             "props": [p.to_dict() for p in desc.props], "dropped": dict(desc.dropped)}
         if scene is not None and sc.clutter is not None:
             scene["clutter"] = [c.to_dict() for c in desc.clutter]
+        if scene is not None and desc.layout is not None:
+            scene["layout"] = desc.layout
         if scene is not None and desc.background is not None:
             scene["background"] = desc.background.to_dict()
             if desc.planned is not None:  # another person took the plan's place

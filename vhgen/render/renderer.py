@@ -203,6 +203,8 @@ class DepthLabelRenderer:
         self.num_bones = 0
         self._single: GpuMesh | None = None
         self._static: tuple[GpuMesh, int, int] | None = None  # (mesh, vertices, triangles)
+        # what the static buffers hold: (key of write_static, the mesh it returned)
+        self._static_key: tuple[object, GpuMesh] | None = None
         self._topologies: dict[tuple, tuple[tuple[np.ndarray, np.ndarray], np.ndarray]] = {}
 
     def _program(self, num_bones: int, garments: bool):
@@ -374,12 +376,15 @@ class DepthLabelRenderer:
                            np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (n, 1)),
                            face_classes, self.num_bones, static=True, cull=False)
 
-    def write_static(self, vertices, faces, face_classes) -> GpuMesh:
+    def write_static(self, vertices, faces, face_classes, key: object = None) -> GpuMesh:
         """Like :meth:`upload_static`, into buffers this renderer keeps and reuses (grown
         when a frame needs more): for the per-frame static geometry, whose GL objects cost
         more to create and release every frame than to overwrite. The mesh stays owned by
-        the renderer and is valid until the next call (never release it)."""
+        the renderer and is valid until the next call (never release it).
 
+        key : an object that stands for this geometry (frames sharing a layout pass the
+            same one and keep it alive), for :meth:`static_for`."""
+        self._static_key = None
         if self.program is None:
             raise RenderError("upload a skinned mesh first (it fixes the rig size)")
         v = np.ascontiguousarray(vertices, dtype="f4")
@@ -404,7 +409,17 @@ class DepthLabelRenderer:
         padded[:len(labels), 0] = labels
         mesh.label_tex.write(padded.tobytes())
         self._check("writing the static geometry")
-        return GpuMesh(mesh.vao, [], mesh.label_tex, True, ((0, len(f), None),))
+        out = GpuMesh(mesh.vao, [], mesh.label_tex, True, ((0, len(f), None),))
+        if key is not None:
+            self._static_key = (key, out)
+        return out
+
+    def static_for(self, key: object) -> GpuMesh | None:
+        """The mesh of the last :meth:`write_static` if it was written with ``key`` (the
+        same object), else None: the buffers still hold that geometry."""
+        if self._static_key is not None and self._static_key[0] is key:
+            return self._static_key[1]
+        return None
 
     def set_mesh(self, vertices, faces, joints, weights, face_labels, num_bones: int) -> None:
         """Upload the one mesh :meth:`render` draws (replacing the previous one)."""
@@ -520,6 +535,7 @@ class DepthLabelRenderer:
         if self._static is not None:
             self._static[0].release()
             self._static = None
+        self._static_key = None
         for obj in (self.program, self.garment_program, self.fbo, self.color, self.ids_tex,
                     self.depth, self.background_tex):
             if obj is not None:

@@ -118,7 +118,12 @@ class SceneRenderer:
         # buffers the renderer reuses from frame to frame
         static = []
         if desc.static:
-            static.append(self.renderer.write_static(*merge_static(desc.static)))
+            # the tuple itself is the key: frames sharing a layout (scene.layout_frames)
+            # share it, and then the buffers already hold it
+            held = self.renderer.static_for(desc.static)
+            if held is None:
+                held = self.renderer.write_static(*merge_static(desc.static), key=desc.static)
+            static.append(held)
 
         def draws(w2v: np.ndarray) -> list[Draw]:
             return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]

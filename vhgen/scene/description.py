@@ -105,6 +105,9 @@ class FrameDescription:
     # scene classes whose pixels get no measurement (window glass): the render step
     # removes their depth before the sensor
     no_return: tuple[int, ...] = ()
+    # the layout this frame shares with its neighbours (scene.layout_frames > 1): frame //
+    # layout_frames; None when the frame laid out its own
+    layout: int | None = None
 
     def noise_rng(self) -> np.random.Generator:
         """A fresh generator at :attr:`noise_state` (the same numbers every call)."""

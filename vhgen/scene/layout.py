@@ -13,19 +13,20 @@ the caller passes a :class:`People`.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
 
 from vhgen.camera import CameraPose, Intrinsics
-from vhgen.scene.clutter.place import Obstacle, place_clutter
+from vhgen.scene.clutter.place import Obstacle, hides, place_clutter
 from vhgen.scene.description import Person, PlacedClutter, PlacedProp
 from vhgen.scene.geometry import StaticMesh
 from vhgen.scene.placement import (
     GAP_M,
     TALL_PROP_M,
     Disc,
+    inside,
     place_anywhere,
     place_between,
     place_in_view,
@@ -34,8 +35,18 @@ from vhgen.scene.placement import (
 )
 from vhgen.scene.props import parametric
 from vhgen.scene.room import Room, sample_room, static_geometry
-from vhgen.scene.scene_config import BEHIND_M, CAMERA_CLEARANCE_M, SceneConfig
-from vhgen.scene.solids import disc_solid
+from vhgen.scene.scene_config import (
+    BEHIND_M,
+    CAMERA_CLEARANCE_M,
+    SceneConfig,
+)
+from vhgen.scene.solids import (
+    Solid,
+    disc_polygon,
+    disc_solid,
+    separated,
+    visible_fraction_with,
+)
 from vhgen.scene.walls import walls_with_openings
 
 
@@ -64,6 +75,7 @@ class SceneLayout:
     props: tuple[PlacedProp, ...] = ()
     dropped: Mapping[str, int] = field(default_factory=dict)
     clutter: tuple[PlacedClutter, ...] = ()
+    clutter_solids: tuple[tuple[Solid, ...], ...] = ()  # per clutter item, its footprints
 
 
 # A frame whose people do not all fit is laid out again (room, headings, spots) from
@@ -180,6 +192,7 @@ def layout_scene(rng: np.random.Generator, scene: SceneConfig, camera: CameraPos
             if tall:
                 walls.append(spot)
     clutter: tuple[PlacedClutter, ...] = ()
+    clutter_solids: tuple[tuple[Solid, ...], ...] = ()
     if sc.clutter is not None and room is not None:
         obstacles = ([Obstacle(disc_solid(d.x, d.z, d.r), GAP_M) for d in people_discs]
                      + [Obstacle(disc_solid(float(eye[0]), float(eye[1]),
@@ -188,13 +201,14 @@ def layout_scene(rng: np.random.Generator, scene: SceneConfig, camera: CameraPos
                                  GAP_M) for p, top in zip(props, prop_tops, strict=True)])
         cl = place_clutter(rng, sc, room, eye, forward, half_fov, obstacles, people_discs,
                            walls, library_seed)
-        clutter = cl.items
+        clutter, clutter_solids = cl.items, cl.item_solids
         dropped["clutter"] = cl.dropped
         static += cl.meshes
         if cl.openings:
             static = [walls_with_openings(room.corners_xz, room.height_m, cl.openings)
                       if m.name == "walls" else m for m in static]
-    return SceneLayout(tuple(people), tuple(static), room, tuple(props), dropped, clutter)
+    return SceneLayout(tuple(people), tuple(static), room, tuple(props), dropped, clutter,
+                       clutter_solids)
 
 
 def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
@@ -250,3 +264,189 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
         discs.append(spot)
         people_discs.append(spot)
     return _People(rng, room, people, discs, drawn, dropped)
+
+
+# -- a layout consecutive frames share (scene.layout_frames) ------------------------------
+SLOT_M = 0.5  # the circle a shared layout keeps free for each person (most standing poses)
+FIRST_SPOTS = 8  # spots drawn in its slot for the first person to stay in view
+PERSON_DRAWS = 4  # draws of a further person (avatar, pose, heading) a slot may hold
+_NO_BONES = np.zeros((0, 4, 4))
+_NO_JOINTS = np.zeros((0, 3))
+_NO_BONES.setflags(write=False)
+_NO_JOINTS.setflags(write=False)
+
+
+@dataclass(frozen=True, eq=False)
+class SharedLayout:
+    """What ``scene.layout_frames`` consecutive frames share, as a sensor standing in a
+    furnished room sees people come and go: the camera, and a layout (room, props,
+    clutter, their static meshes) made once around places kept for people (``slots``:
+    circles of :data:`SLOT_M` for further people; the first person's at the origin).
+    ``room_meshes``: how many of ``layout.static`` are the room's own (the props' meshes
+    follow, one each, then the clutter's)."""
+
+    camera: CameraPose
+    layout: SceneLayout
+    slots: tuple[Disc, ...]
+    room_meshes: int
+    # what hides people: tall props' circles (x, z, r) and the footprints of clutter
+    # parts that hide a standing person (as placement counts them)
+    tall_props: tuple[tuple[float, float, float], ...] = ()
+    hiding: tuple[np.ndarray, ...] = ()
+
+
+class _Slots:
+    """The people :func:`layout_shared` lays out: each a circle of :data:`SLOT_M` at the
+    origin, without a body."""
+
+    def __init__(self, num_avatars: int, num_poses: int):
+        self.num_avatars, self.num_poses = num_avatars, num_poses
+
+    def pose(self, instance: int, avatar_id: int, pose: int) -> Person:
+        return Person(instance, avatar_id, pose, _NO_BONES, _NO_JOINTS, np.zeros(3),
+                      footprint=Disc(0.0, 0.0, SLOT_M))
+
+
+def layout_shared(rng: np.random.Generator, scene: SceneConfig, camera: CameraPose,
+                  intr: Intrinsics, reach: tuple[float, float], people_from: People,
+                  redraw: Callable[[int], np.random.Generator] | None = None,
+                  library_seed: int = 0) -> SharedLayout:
+    """The layout frames share (see :class:`SharedLayout`): :func:`layout_scene` for the
+    most people ``scene.people`` allows, each a circle of :data:`SLOT_M`, so the room,
+    props and clutter leave that much floor free for every person and keep each of them
+    ``min_visible_fraction`` in view. ``rng`` and ``redraw``: the shared layout's own
+    streams; ``people_from`` only gives the numbers of avatars and poses drawn from."""
+    most = scene.people[1]
+    slots = _Slots(people_from.num_avatars, people_from.num_poses)
+    lay = layout_scene(rng, replace(scene, people=(most, most)), camera, intr, reach,
+                       slots.pose(1, -1, -1), slots, redraw, library_seed)
+    places = tuple(p.footprint for p in lay.people[1:] if p.footprint is not None)
+    n_room = len(lay.static) - len(lay.props) - len(lay.clutter)
+    tall = tuple((p.footprint.x, p.footprint.z, p.footprint.r)
+                 for p, m in zip(lay.props, lay.static[n_room:], strict=False)
+                 if float(m.vertices[:, 1].max()) >= TALL_PROP_M)
+    hiding = tuple(s.poly for item in lay.clutter_solids for s in item if hides(s))
+    return SharedLayout(camera, lay, places, n_room, tall, hiding)
+
+
+def fill_shared(rng: np.random.Generator, shared: SharedLayout, scene: SceneConfig,
+                first: Person, people_from: People) -> SceneLayout:
+    """One frame of a shared layout, drawn from ``rng`` (the frame's scene stream):
+    ``first`` (the plan's person, posed at the origin with its footprint) moved so that its
+    footprint lies at a random spot inside the slot at the origin; then how many people
+    (``scene.people``), and for each further one its avatar, pose and heading, and a spot
+    inside the first free slot, in a drawn order, that holds it: where it touches no
+    other person, keeps everyone ``min_visible_fraction`` in view, and, if it is wider
+    than the slot (it then stands at the slot's centre), touches no wall, the camera,
+    prop or clutter. A person no free slot holds is drawn again (at most
+    :data:`PERSON_DRAWS` draws), then left out (``dropped["people"]``). The first
+    person, who is always there, instead leaves out the props and clutter its footprint
+    touches (counted in ``dropped``; a door or window left out keeps its opening in the
+    wall). A frame that leaves nothing out shares the layout's ``static`` tuple itself
+    (the render step keeps it on the GPU)."""
+    lay, room = shared.layout, shared.layout.room
+    eye = shared.camera.eye[[0, 2]]
+    f = first.footprint
+    assert f is not None
+    for _ in range(FIRST_SPOTS):  # a spot where it stays in view (else the last drawn)
+        at = _in_slot(Disc(0.0, 0.0, SLOT_M), f.r, rng.uniform(size=2))
+        if _in_view(shared, eye, [at], scene.min_visible_fraction):
+            break
+    t = yaw_transform(0.0, at.x - f.x, at.z - f.z)
+    first = Person(first.instance, first.avatar_id, first.pose_index, t @ first.bones,
+                   first.joints + t[:3, 3], first.offset, t @ first.placement, at)
+    n = int(rng.integers(scene.people[0], scene.people[1] + 1))
+    order = rng.permutation(len(shared.slots))
+    people, discs = [first], [at]
+    dropped = {**lay.dropped, "people": 0}  # props and clutter: those of the layout
+    free = [int(k) for k in order]
+    for _ in range(n - 1):
+        spot = None
+        for _ in range(PERSON_DRAWS):  # who, then the first free slot that holds them
+            a = int(rng.integers(people_from.num_avatars))
+            pose = int(rng.integers(people_from.num_poses))
+            heading = float(rng.uniform(-np.pi, np.pi))
+            local = people_from.pose(len(people) + 1, a, pose)
+            fp = local.footprint
+            assert fp is not None
+            for k in free:
+                slot = shared.slots[k]
+                spot = _in_slot(slot, fp.r, rng.uniform(size=2))
+                apart = all(np.hypot(spot.x - d.x, spot.z - d.z) >= spot.r + d.r + GAP_M
+                            for d in discs)
+                if (apart and (fp.r <= slot.r or _clear(spot, shared, eye))
+                        and _in_view(shared, eye, [*discs, spot], scene.min_visible_fraction)):
+                    free.remove(k)
+                    break
+                spot = None
+            if spot is not None:
+                break
+        if spot is None:
+            dropped["people"] += 1
+            continue
+        assert fp is not None
+        c = np.array([fp.x, 0.0, fp.z])
+        t = yaw_transform(heading, spot.x, spot.z) @ yaw_transform(0.0, -c[0], -c[2])
+        people.append(Person(len(people) + 1, a, pose, t @ local.bones,
+                             local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot))
+        discs.append(spot)
+    props, clutter, solids = lay.props, lay.clutter, lay.clutter_solids
+    static = lay.static
+    f = at
+    if f.r > SLOT_M:  # wider than its slot: what it touches goes
+        keep_p = [np.hypot(f.x - p.footprint.x, f.z - p.footprint.z)
+                  >= f.r + p.footprint.r + GAP_M for p in props]
+        keep_c = [_apart(f, s) for s in solids]
+        if not all(keep_p) or not all(keep_c):
+            dropped["props"] += keep_p.count(False)
+            if keep_c:
+                dropped["clutter"] += keep_c.count(False)
+            n_room, n_props = shared.room_meshes, len(props)
+            prop_meshes = static[n_room:n_room + n_props]
+            clutter_meshes = static[n_room + n_props:]
+            props = tuple(p for p, ok in zip(props, keep_p, strict=True) if ok)
+            clutter = tuple(c for c, ok in zip(clutter, keep_c, strict=True) if ok)
+            solids = tuple(s for s, ok in zip(solids, keep_c, strict=True) if ok)
+            static = (static[:n_room]
+                      + tuple(m for m, ok in zip(prop_meshes, keep_p, strict=True) if ok)
+                      + tuple(m for m, ok in zip(clutter_meshes, keep_c, strict=True) if ok))
+    return SceneLayout(tuple(people), static, room, props, dropped, clutter, solids)
+
+
+def _in_slot(slot: Disc, r: float, u: np.ndarray) -> Disc:
+    """A circle of radius ``r`` inside ``slot``, where the two uniform numbers ``u`` put
+    it (uniform over the spots it can take); at the slot's centre if it is wider."""
+    play = max(slot.r - r, 0.0) * float(np.sqrt(u[0]))
+    return Disc(slot.x + play * float(np.cos(2 * np.pi * u[1])),
+                slot.z + play * float(np.sin(2 * np.pi * u[1])), r)
+
+
+def _in_view(shared: SharedLayout, eye: np.ndarray, people: list[Disc],
+             least: float) -> bool:
+    """Every person of ``people`` keeps ``least`` of its width in view past the others,
+    the tall props and the clutter that hides people (the floor-plan measure of
+    placement)."""
+    for p in people:
+        others = [(q.x, q.z, q.r) for q in people if q is not p] + list(shared.tall_props)
+        if visible_fraction_with(eye, np.array([p.x, p.z]), p.r, others,
+                                 list(shared.hiding)) < least:
+            return False
+    return True
+
+
+def _apart(d: Disc, solids: tuple[Solid, ...]) -> bool:
+    """A person's footprint ``d`` at least GAP_M from every footprint of a clutter item
+    (people stand from the floor up: every height counts, as in placement)."""
+    poly = disc_polygon(d.x, d.z, d.r)[None]
+    return all(bool(separated(poly, s.poly, GAP_M, s.normals)[0]) for s in solids)
+
+
+def _clear(d: Disc, shared: SharedLayout, eye: np.ndarray) -> bool:
+    """A footprint ``d`` inside the room, clear of the camera, the props and the clutter
+    of ``shared`` (other people are the caller's)."""
+    lay = shared.layout
+    return (inside(lay.room, d)
+            and np.hypot(d.x - eye[0], d.z - eye[1]) >= d.r + CAMERA_CLEARANCE_M + GAP_M
+            and all(np.hypot(d.x - p.footprint.x, d.z - p.footprint.z)
+                    >= d.r + p.footprint.r + GAP_M for p in lay.props)
+            and all(_apart(d, s) for s in lay.clutter_solids))

@@ -153,6 +153,10 @@ class SceneConfig:
     # floor is the background's and there is no room or props
     backgrounds: tuple[BackgroundSource, ...] = ()
     clutter: ClutterConfig | None = None
+    # this many consecutive frames share one camera, room, props and clutter (a sensor
+    # standing in a furnished room while people come and go; see
+    # vhgen.scene.layout.layout_shared); 1: every frame lays out its own
+    layout_frames: int = 1
 
     @cached_property
     def clutter_roles(self) -> dict[str, np.ndarray]:
@@ -398,7 +402,7 @@ def parse_scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
     """The ``scene:`` section; checks at load time that a room can hold the people, the
     props and the camera at its farthest distance."""
     check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction",
-                   "backgrounds", "clutter"}, set(), src, "scene.")
+                   "backgrounds", "clutter", "layout_frames"}, set(), src, "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
@@ -459,10 +463,17 @@ def parse_scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
             raise ConfigError(src, "scene.clutter", "clutter stands on the floor and against "
                               "walls: it needs scene.floor: true and a scene.room")
         _check_clutter_fits(clutter, room, people, props, src)
+    layout_frames = number(d, "layout_frames", src, "scene.", lo=1, hi=1_000_000,
+                           integer=True, default=1)
+    if layout_frames > 1 and (backgrounds or (room is None and props is None)):
+        raise ConfigError(src, "scene.layout_frames", "frames share a room, props and "
+                          "clutter: it needs scene.room or scene.props, and no "
+                          "scene.backgrounds (a real background is already shared)")
     scene = SceneConfig(floor=floor, room=room, people=people, props=props,
                         min_visible_fraction=number(d, "min_visible_fraction", src, "scene.",
                                                   lo=0.0, hi=1.0, default=0.5),
-                        backgrounds=backgrounds, clutter=clutter)
+                        backgrounds=backgrounds, clutter=clutter,
+                        layout_frames=int(layout_frames))
     room_for = MAX_SCENE_CLASSES - len(SCENE_CLASSES)
     if len(scene.class_names) - len(SCENE_CLASSES) > room_for:
         raise ConfigError(src, "scene.backgrounds" if backgrounds else "scene.clutter",

@@ -107,13 +107,14 @@ class Obstacle:
 class ClutterLayout:
     """What :func:`place_clutter` placed: the items, their meshes (world, classes per
     face), the wall openings (wall -> [(s0, s1, y0, y1)]), how many items found no place,
-    and the footprints of what it placed."""
+    and the footprints of what it placed (all, and per item)."""
 
     items: tuple[PlacedClutter, ...]
     meshes: tuple[StaticMesh, ...]
     openings: dict[int, list[tuple[float, float, float, float]]]
     dropped: int
     solids: tuple[Solid, ...]
+    item_solids: tuple[tuple[Solid, ...], ...] = ()
 
 
 def _rotate(yaw: np.ndarray, xz: np.ndarray) -> np.ndarray:
@@ -372,6 +373,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     meshes: list[StaticMesh] = []
     openings: dict[int, list[tuple[float, float, float, float]]] = {}
     placed: list[Solid] = []
+    item_solids: list[tuple[Solid, ...]] = []
     dropped = 0
     drawn = []
     for _ in range(n_items):
@@ -404,15 +406,17 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
         meshes.append(StaticMesh(f"clutter:{kind}", shape.vertices @ t[:3, :3].T + t[:3, 3],
                                  shape.faces, roles[cfg.classes[pick]][shape.roles]))
         fr.add(solids, [CLUTTER_GAP_M] * len(solids))
-        fr.hide([s.poly for s in solids if _hides(s)], ranges)
+        fr.hide([s.poly for s in solids if hides(s)], ranges)
         placed += solids
+        item_solids.append(tuple(solids))
         if shape.opening is not None and wall[k] >= 0:
             w = fr.walls[int(wall[k])]
             s_mid = float((origin[k] - w.a) @ w.e)
             ends = sorted((s_mid + w.sign * shape.opening[0], s_mid + w.sign * shape.opening[1]))
             openings.setdefault(int(wall[k]), []).append(
                 (ends[0], ends[1], shape.opening[2], shape.opening[3]))
-    return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(placed))
+    return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(placed),
+                         tuple(item_solids))
 
 
 # where a candidate stands: PLACEMENT_MODES' positions, and nowhere (no free wall for it)
@@ -440,7 +444,7 @@ def _floor_area(shape: ClutterShape) -> float:
     return float(np.prod(shape.inner_box[1] - shape.inner_box[0]))
 
 
-def _hides(s: Solid) -> bool:
+def hides(s: Solid) -> bool:
     """A footprint tall enough, from low enough, to hide a standing person."""
     return s.inside and s.y1 >= HIDES_ABOVE_M and s.y0 < HIDES_FROM_M
 
