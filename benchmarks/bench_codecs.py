@@ -10,8 +10,10 @@ candidate is ``zstd-LEVEL`` (zarr's ``ZstdCodec``) or ``blosc-CNAME-CLEVEL-SHUFF
 (zarr's ``BloscCodec``: cname zstd, lz4, lz4hc, zlib; shuffle noshuffle, shuffle or
 bitshuffle), both codecs of the zarr v3 specification that zarr 3.0.8 (the floor) writes
 and reads, or, for uint16 arrays, ``palette-zstd-LEVEL``: vhgen's ``vhgen.palette`` filter
-(:mod:`vhgen.store.palette`) before zstd. Times are one core: blosc's own threads are
-off, as they are in the store reader's decode threads. The candidates of an array take
+(:mod:`vhgen.store.palette`) before zstd, and ``palette-rows-zstd-LEVEL`` the same with
+the indexes as differences down the rows (what vhgen writes since 2026-11-29). Times
+are one core: blosc's own threads are off, as they are in the store reader's decode
+threads. The candidates of an array take
 turns for ``--repeat`` passes over the frames and each cell is a candidate's fastest
 pass. ``x store``: the candidate's bytes over the store's own for that array (its inner
 chunks, from the shard indexes). ``--against`` compares two stores of the same frames
@@ -38,24 +40,28 @@ DEFAULT_CODECS = {
     "uint16": ["zstd-3", "zstd-6", "zstd-9", "zstd-11", "zstd-12", "zstd-15", "zstd-16",
                "zstd-19", "blosc-zstd-3-shuffle", "blosc-zstd-5-shuffle",
                "blosc-zstd-5-bitshuffle", "blosc-lz4-5-shuffle", "palette-zstd-3",
-               "palette-zstd-5", "palette-zstd-7", "palette-zstd-11", "palette-zstd-16"],
+               "palette-zstd-5", "palette-zstd-7", "palette-zstd-11", "palette-zstd-16",
+               "palette-rows-zstd-1", "palette-rows-zstd-3", "palette-rows-zstd-5",
+               "palette-rows-zstd-7", "palette-rows-zstd-11"],
     "uint8": ["zstd-3", "zstd-6", "zstd-9", "zstd-12", "zstd-15", "zstd-19",
               "blosc-zstd-5-bitshuffle", "blosc-lz4-5-noshuffle"],
 }
 
 
 class PaletteZstd:
-    """``vhgen.palette`` then zstd, as a store's depth chunks are written and read."""
+    """``vhgen.palette`` then zstd, as a store's depth chunks are written and read;
+    ``rows``: the indexes as differences down the rows (``configuration.rows``)."""
 
-    def __init__(self, level: int):
+    def __init__(self, level: int, rows: bool = False):
         import numcodecs
 
         self.zstd = numcodecs.Zstd(level=level)
+        self.rows = rows
 
     def encode(self, frame: np.ndarray) -> bytes:
         from vhgen.store import palette
 
-        return self.zstd.encode(palette.encode(frame))
+        return self.zstd.encode(palette.encode(frame, frame.shape[-1] if self.rows else None))
 
     def decode(self, chunk: bytes, out: np.ndarray) -> np.ndarray:
         import numcodecs.zstd
@@ -76,6 +82,8 @@ def numcodec(name: str, itemsize: int) -> Any:
     kind, *rest = name.split("-")
     if kind == "palette" and itemsize == 2 and len(rest) == 2 and rest[0] == "zstd":
         return PaletteZstd(int(rest[1]))
+    if (kind == "palette" and itemsize == 2 and len(rest) == 3 and rest[:2] == ["rows", "zstd"]):
+        return PaletteZstd(int(rest[2]), rows=True)
     if kind == "zstd":
         return numcodecs.Zstd(level=int(rest[0]))
     if kind == "blosc":
@@ -84,7 +92,7 @@ def numcodec(name: str, itemsize: int) -> Any:
                 "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[shuffle]
         return numcodecs.Blosc(cname=cname, clevel=int(clevel), shuffle=code)
     raise SystemExit(f"unknown candidate {name!r}: zstd-LEVEL, blosc-CNAME-CLEVEL-SHUFFLE "
-                     "or (uint16) palette-zstd-LEVEL")
+                     "or (uint16) palette-zstd-LEVEL, palette-rows-zstd-LEVEL")
 
 
 def stored_bytes(store: Path, name: str, frames: int) -> float | None:

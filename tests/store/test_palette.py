@@ -44,13 +44,43 @@ def test_round_trip_is_exact(values):
             "odd": lambda: rng.integers(1000, 1100, (7, 9)).astype(np.uint16),
             "single": lambda: np.array([65535], np.uint16),
             "empty": lambda: np.zeros((0, 5), np.uint16)}[values]()
-    enc = palette.encode(data)
     n = len(np.unique(data))
-    assert enc.size == 4 + 2 * n + data.size * (2 if n > 256 else 1)
-    for buf in (enc, enc.tobytes()):
-        out = np.full_like(data, 12345)
-        palette.decode_into(buf, out)
-        assert np.array_equal(out, data)
+    width = data.shape[-1] if data.ndim == 2 and data.shape[-1] else 1
+    for rows in (None, width):  # the plain indexes (stores written before), differences
+        enc = palette.encode(data, rows)
+        assert enc.size == (4 + (4 if rows else 0) + 2 * n
+                            + data.size * (2 if n > 256 else 1))
+        for buf in (enc, enc.tobytes()):
+            out = np.full_like(data, 12345)
+            palette.decode_into(buf, out)
+            assert np.array_equal(out, data)
+
+
+def test_differences_down_the_rows_are_mostly_zero_and_flagged():
+    """On sensor-like depth the differences from the row above are mostly 0 (what makes
+    zstd's work small); the chunk's first word carries the flag, so a decoder that does
+    not know it reads far too many values and fails on the size, never with wrong
+    values; a width that does not divide the chunk is refused."""
+    frame = _sensor_like(np.random.default_rng(3), 1)[0]
+    plain, rows = palette.encode(frame), palette.encode(frame, frame.shape[1])
+    n = len(np.unique(frame))
+    idx_plain, idx_rows = plain[4 + 2 * n:], rows[8 + 2 * n:]
+    assert np.mean(idx_rows == 0) > 2 * np.mean(idx_plain == idx_plain[0])
+    first = int(rows[:4].view("<u4")[0])
+    assert first & palette.ROWS and first & ~palette.ROWS == n
+    assert int(rows[4:8].view("<u4")[0]) == frame.shape[1]
+    with pytest.raises(ValueError, match="rows of"):
+        palette.encode(frame, 7)
+    bad = rows.copy()
+    bad[4:8] = np.array([7], "<u4").view(np.uint8)
+    with pytest.raises(palette.PaletteError, match="rows of 7"):
+        palette.decode_into(bad, np.empty_like(frame))
+    bad = rows.copy()
+    assert n <= 256  # one plane: the last pixel's difference adds up to index n
+    above = int(np.searchsorted(np.unique(frame), frame[-2, -1]))
+    bad[-1] = (n - above) % 256
+    with pytest.raises(palette.PaletteError, match="past its"):
+        palette.decode_into(bad, np.empty_like(frame))
 
 
 def test_damaged_chunks_raise():
@@ -82,7 +112,7 @@ def _real_frames() -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
-    """The same real frames written with and without the palette (zstd 7)."""
+    """The same real frames written with and without the palette (zstd 3)."""
     from vhgen.store.zarr_store import create_store, write_shard
 
     frames = _real_frames()
@@ -109,8 +139,9 @@ def test_store_is_smaller_and_reads_the_same(pair):
 
     frames, stores = pair
     codecs = json.loads((stores[True] / "depth" / "zarr.json").read_text())
-    inner = [c["name"] for c in codecs["codecs"][0]["configuration"]["codecs"]]
-    assert inner == ["bytes", "vhgen.palette", "zstd"]
+    inner = codecs["codecs"][0]["configuration"]["codecs"]
+    assert [c["name"] for c in inner] == ["bytes", "vhgen.palette", "zstd"]
+    assert inner[1]["configuration"] == {"typesize": 2, "rows": True}
     labels = json.loads((stores[True] / "labels" / "zarr.json").read_text())
     assert "vhgen.palette" not in json.dumps(labels)  # uint8 arrays: zstd alone
     plain = json.loads((stores[False] / "depth" / "zarr.json").read_text())
@@ -199,7 +230,34 @@ def test_inspect_names_the_codecs(pair):
 
     _, stores = pair
     text = inspect_store(stores[True]).format()
-    assert "depth: bytes > vhgen.palette > zstd 7" in text and "where vhgen is installed" in text
+    assert "depth: bytes > vhgen.palette rows > zstd 3" in text
+    assert "where vhgen is installed" in text
     plain = inspect_store(stores[False])
-    assert plain.to_dict()["codecs"]["depth"] == "bytes > zstd 7"
+    assert plain.to_dict()["codecs"]["depth"] == "bytes > zstd 3"
     assert "where vhgen is installed" not in plain.format()
+
+
+def test_store_of_the_plain_indexes_reads_the_same(tmp_path):
+    """A store written before the differences (``vhgen.palette`` with ``{"typesize": 2}``
+    only, zstd 7) reads through zarr and the training reader as it did."""
+    import zarr
+    from zarr.codecs import ZstdCodec
+
+    from vhgen.store.palette import PaletteCodec, register
+
+    register()
+    frames = _sensor_like(np.random.default_rng(5), 4, 48, 64)
+    root = zarr.open_group(str(tmp_path / "old.zarr"), mode="w", zarr_format=3)
+    arr = root.create_array("depth", shape=frames.shape, dtype="uint16", chunks=(1, 48, 64),
+                            shards=(2, 48, 64), compressors=[PaletteCodec(), ZstdCodec(level=7)],
+                            fill_value=0, dimension_names=("frame", "y", "x"))
+    arr[:] = frames
+    meta = json.loads((tmp_path / "old.zarr" / "depth" / "zarr.json").read_text())
+    assert {"typesize": 2} in [c.get("configuration") for c in
+                               meta["codecs"][0]["configuration"]["codecs"]]
+    assert np.array_equal(zarr.open_group(str(tmp_path / "old.zarr"), mode="r")["depth"][:],
+                          frames)
+    reader = ShardReader(tmp_path / "old.zarr", ["depth"], threads=1)
+    out = reader.empty("depth", 4)
+    reader.read_into([("depth", f, out[f]) for f in range(4)])
+    assert np.array_equal(out, frames)

@@ -139,7 +139,7 @@ _FORMS = {0: "no readable manifest",
 
 
 def _codec_names(meta_path: Path) -> str:
-    """The codecs of one array's frames, in order ("bytes > vhgen.palette > zstd 7"), as
+    """The codecs of one array's frames, in order ("bytes > vhgen.palette rows > zstd 3"), as
     its zarr.json names them (inside the shards when it is sharded)."""
     try:
         codecs = json.loads(meta_path.read_text())["codecs"]
@@ -150,7 +150,9 @@ def _codec_names(meta_path: Path) -> str:
             conf = c.get("configuration") or {}
             level = conf.get("level", conf.get("clevel"))
             cname = f" {conf['cname']}" if "cname" in conf else ""
-            names.append(f"{c['name']}{cname}" + (f" {level}" if level is not None else ""))
+            rows = " rows" if conf.get("rows") is True else ""  # vhgen.palette's differences
+            names.append(f"{c['name']}{cname}{rows}"
+                         + (f" {level}" if level is not None else ""))
         return " > ".join(names)
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return "unknown"

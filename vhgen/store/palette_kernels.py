@@ -39,3 +39,45 @@ def lookup16(lo, hi, table, out):  # pragma: no cover  (compiled)
             k = 0
         out[i] = table[k]
     return bad
+
+
+# The differences down the rows added up a row at a time, in three loops over the row
+# (add; look up; the largest index) that the compiler vectorises: as fast as lookup8
+# (~0.2 ms a frame), where one loop doing all three took twice as long.
+@numba.njit(cache=True, nogil=True)
+def rows8(plane, width, table, out):  # pragma: no cover  (compiled)
+    """out[i] = table[k] where k, per column, adds up ``plane`` down the rows of
+    ``width`` (modulo 256): the indexes stored as differences; as :func:`lookup8`."""
+    n = table.shape[0]
+    padded = np.zeros(256, np.uint16)  # any byte indexes it; one past n is reported
+    padded[:n] = table[:256]
+    acc = np.zeros(width, np.uint8)
+    most = 0
+    for r in range(out.shape[0] // width):
+        base = r * width
+        for j in range(width):
+            acc[j] += plane[base + j]  # stored as uint8: modulo 256
+        for j in range(width):
+            out[base + j] = padded[acc[j]]
+        for j in range(width):
+            most = max(most, acc[j])
+    return most if most >= n and out.shape[0] else -1
+
+
+@numba.njit(cache=True, nogil=True)
+def rows16(lo, hi, width, table, out):  # pragma: no cover  (compiled)
+    """:func:`rows8` over two planes (modulo 65536), as :func:`lookup16`."""
+    n = table.shape[0]
+    padded = np.zeros(65536, np.uint16)
+    padded[:n] = table[:65536]
+    acc = np.zeros(width, np.uint16)
+    most = 0
+    for r in range(out.shape[0] // width):
+        base = r * width
+        for j in range(width):
+            acc[j] += np.uint16(lo[base + j]) | (np.uint16(hi[base + j]) << 8)
+        for j in range(width):
+            out[base + j] = padded[acc[j]]
+        for j in range(width):
+            most = max(most, acc[j])
+    return most if most >= n and out.shape[0] else -1
