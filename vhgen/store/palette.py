@@ -119,15 +119,20 @@ def decode_into(encoded: np.ndarray | bytes | memoryview, out: np.ndarray) -> No
                            f"{size} elements")
     if n == 0 and size:
         raise PaletteError(f"palette chunk: no values for {size} elements")
-    from vhgen.store import palette_kernels as k  # numba: loaded when used
+    from vhgen.store.palette_kernels import (  # numba: loaded when used
+        lookup8,
+        lookup16,
+        rows8,
+        rows16,
+    )
 
     table = buf[head:head + 2 * n].view("<u2").astype(np.uint16)
     body = buf[head + 2 * n:]
     if n > 256:
-        bad = (k.rows16(body[:size], body[size:], width, table, flat) if width
-               else k.lookup16(body[:size], body[size:], table, flat))
+        bad = (rows16(body[:size], body[size:], width, table, flat) if width
+               else lookup16(body[:size], body[size:], table, flat))
     else:
-        bad = k.rows8(body, width, table, flat) if width else k.lookup8(body, table, flat)
+        bad = rows8(body, width, table, flat) if width else lookup8(body, table, flat)
     if bad >= 0:
         raise PaletteError(f"palette chunk: index {bad} past its {n} values")
 

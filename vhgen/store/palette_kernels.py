@@ -45,18 +45,18 @@ def lookup16(lo, hi, table, out):  # pragma: no cover  (compiled)
 # (add; look up; the largest index) that the compiler vectorises: as fast as lookup8
 # (~0.2 ms a frame), where one loop doing all three took twice as long.
 @numba.njit(cache=True, nogil=True)
-def rows8(plane, width, table, out):  # pragma: no cover  (compiled)
+def _rows(plane, width, table, size, out):  # pragma: no cover  (compiled)
     """out[i] = table[k] where k, per column, adds up ``plane`` down the rows of
-    ``width`` (modulo 256): the indexes stored as differences; as :func:`lookup8`."""
+    ``width`` modulo ``size`` (the plane's dtype: 256 or 65536)."""
     n = table.shape[0]
-    padded = np.zeros(256, np.uint16)  # any byte indexes it; one past n is reported
-    padded[:n] = table[:256]
-    acc = np.zeros(width, np.uint8)
+    padded = np.zeros(size, np.uint16)  # any index of the dtype reads it; past n: reported
+    padded[:n] = table[:size]
+    acc = np.zeros(width, plane.dtype)
     most = 0
     for r in range(out.shape[0] // width):
         base = r * width
         for j in range(width):
-            acc[j] += plane[base + j]  # stored as uint8: modulo 256
+            acc[j] += plane[base + j]  # stored in the plane's dtype: modulo its size
         for j in range(width):
             out[base + j] = padded[acc[j]]
         for j in range(width):
@@ -65,19 +65,16 @@ def rows8(plane, width, table, out):  # pragma: no cover  (compiled)
 
 
 @numba.njit(cache=True, nogil=True)
+def rows8(plane, width, table, out):  # pragma: no cover  (compiled)
+    """The indexes stored as differences down the rows of ``width`` (modulo 256), looked
+    up; as :func:`lookup8`."""
+    return _rows(plane, width, table, 256, out)
+
+
+@numba.njit(cache=True, nogil=True)
 def rows16(lo, hi, width, table, out):  # pragma: no cover  (compiled)
     """:func:`rows8` over two planes (modulo 65536), as :func:`lookup16`."""
-    n = table.shape[0]
-    padded = np.zeros(65536, np.uint16)
-    padded[:n] = table[:65536]
-    acc = np.zeros(width, np.uint16)
-    most = 0
-    for r in range(out.shape[0] // width):
-        base = r * width
-        for j in range(width):
-            acc[j] += np.uint16(lo[base + j]) | (np.uint16(hi[base + j]) << 8)
-        for j in range(width):
-            out[base + j] = padded[acc[j]]
-        for j in range(width):
-            most = max(most, acc[j])
-    return most if most >= n and out.shape[0] else -1
+    plane = np.empty(lo.shape[0], np.uint16)  # uint16, so that the sums wrap at 65536
+    for i in range(lo.shape[0]):
+        plane[i] = np.uint16(lo[i]) | (np.uint16(hi[i]) << np.uint16(8))
+    return _rows(plane, width, table, 65536, out)
