@@ -64,31 +64,25 @@ class PaletteError(ValueError):
 def encode(values: np.ndarray, width: int | None = None) -> np.ndarray:
     """The palette encoding (uint8 bytes) of a uint16 array; ``width``: the length of its
     image rows, to store each index as its difference from the one a row above (see the
-    module docstring; None: the plain indexes)."""
+    module docstring; None: the plain indexes). Compiled: ~0.5 ms a 640x480 frame."""
+    from vhgen.store.palette_kernels import index_planes, table_of  # numba: when used
+
     flat = np.ascontiguousarray(values, dtype="<u2").reshape(-1)
-    present = np.bincount(flat, minlength=65536) > 0
-    table = np.flatnonzero(present).astype("<u2")
-    index = (np.cumsum(present, dtype=np.int32) - 1).astype("<u2")[flat]
-    n = len(table)
-    head = _HEADER
-    if width is not None:
-        if width < 1 or flat.size % width:
-            raise ValueError(f"{NAME}: {flat.size} elements are not rows of {width}")
-        rows = index.reshape(-1, width)
-        rows[1:] -= rows[:-1].copy()  # uint16 arithmetic: modulo 65536
-        head += 4
-    out = np.empty(head + 2 * n + flat.size * (2 if n > 256 else 1), np.uint8)
-    first = np.array([n | (ROWS if width is not None else 0)], "<u4")
-    out[:4] = first.view(np.uint8)
+    if width is not None and (width < 1 or flat.size % width):
+        raise ValueError(f"{NAME}: {flat.size} elements are not rows of {width}")
+    rank = np.empty(65536, np.uint16)
+    table = np.empty(65536, "<u2")
+    n = int(table_of(flat.view(np.uint16), rank, table.view(np.uint16)))
+    head = _HEADER + (4 if width is not None else 0)
+    two = n > 256
+    out = np.empty(head + 2 * n + flat.size * (2 if two else 1), np.uint8)
+    out[:4] = np.array([n | (ROWS if width is not None else 0)], "<u4").view(np.uint8)
     if width is not None:
         out[4:8] = np.array([width], "<u4").view(np.uint8)
-    out[head:head + 2 * n] = table.view(np.uint8)
-    planes = out[head + 2 * n:]
-    if n > 256:
-        planes[:flat.size] = index & 0xFF
-        planes[flat.size:] = index >> 8
-    else:
-        planes[:] = index  # modulo 256: the differences of indexes below 256 add up again
+    out[head:head + 2 * n] = table[:n].view(np.uint8)
+    # one plane: the differences modulo 65536 keep their low byte, and the low bytes of
+    # indexes below 256 add up again modulo 256
+    index_planes(flat.view(np.uint16), rank, width or 0, two, out[head + 2 * n:])
     return out
 
 

@@ -78,3 +78,48 @@ def rows16(lo, hi, width, table, out):  # pragma: no cover  (compiled)
     for i in range(lo.shape[0]):
         plane[i] = np.uint16(lo[i]) | (np.uint16(hi[i]) << np.uint16(8))
     return _rows(plane, width, table, 65536, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def table_of(flat, rank, table):  # pragma: no cover  (compiled)
+    """The sorted distinct values of ``flat`` into ``table`` (65536,) and each value's
+    index among them into ``rank`` (65536,); returns how many there are."""
+    present = np.zeros(65536, np.uint8)
+    for i in range(flat.shape[0]):
+        present[flat[i]] = 1
+    n = 0
+    for v in range(65536):
+        if present[v]:
+            rank[v] = n
+            table[n] = v
+            n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def index_planes(flat, rank, width, two, planes):  # pragma: no cover  (compiled)
+    """Each element's index (``rank`` of its value) into ``planes``: the low bytes, then,
+    when ``two``, the high bytes after them; with ``width`` > 0 each index less the one a
+    row above (modulo 65536; the first row as it is). A row at a time, in loops the
+    compiler vectorises (look up; subtract; split the bytes)."""
+    size = flat.shape[0]
+    w = width if width else max(size, 1)
+    above = np.zeros(w, np.uint16)
+    cur = np.empty(w, np.uint16)
+    diff = np.empty(w, np.uint16)
+    for r in range(size // w):
+        base = r * w
+        for j in range(w):
+            cur[j] = rank[flat[base + j]]
+        if width:
+            for j in range(w):
+                diff[j] = cur[j] - above[j]  # stored as uint16: modulo 65536
+            above, cur = cur, above
+            out = diff
+        else:
+            out = cur
+        for j in range(w):
+            planes[base + j] = np.uint8(out[j] & 0xFF)
+        if two:
+            for j in range(w):
+                planes[size + base + j] = np.uint8(out[j] >> 8)
