@@ -4,7 +4,7 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
         [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
-        [--gl-calls N]
+        [--layout-frames 1,16] [--gl-calls N]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -153,6 +153,7 @@ class Row:
     gpu: list[float]
     cpu: float | None
     renderers: list[str]
+    layout_frames: int = 1
 
 
 def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | None) -> Row:
@@ -170,7 +171,7 @@ def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | Non
     cpu = sampler.cpu_busy(t_end - s.render_seconds, t_end) if sampler else None
     steady = ran / s.steady_seconds_per_frame if s.steady_seconds_per_frame else 0.0
     return Row(workers, ran, s.frames, s.seconds, s.fixed_seconds, s.render_seconds, steady,
-               gpu, cpu, s.renderers)
+               gpu, cpu, s.renderers, cfg.scene.layout_frames)
 
 
 def load_config(args: argparse.Namespace) -> JobConfig:
@@ -193,7 +194,8 @@ def load_config(args: argparse.Namespace) -> JobConfig:
 
 def print_table(rows: list[Row], gpu_available: bool) -> None:
     """The rows as a table (one line per job)."""
-    print(f"{'workers':>7s} {'frames':>6s} {'wall s':>7s} {'fixed s':>7s} {'dispatch s':>10s} "
+    print(f"{'workers':>7s} {'layout':>6s} {'frames':>6s} {'wall s':>7s} {'fixed s':>7s} "
+          f"{'dispatch s':>10s} "
           f"{'frames/s dispatch':>17s} {'frames/s steady':>15s} {'GPU busy % mean/max':>19s} "
           f"{'CPU busy %':>10s}")
     for r in rows:
@@ -202,7 +204,8 @@ def print_table(rows: list[Row], gpu_available: bool) -> None:
         else:
             busy = "no samples" if gpu_available else "-"
         ran = f"{r.workers}" if r.ran == r.workers else f"{r.workers} ({r.ran} ran)"
-        print(f"{ran:>7s} {r.frames:6d} {r.wall:7.1f} {r.fixed:7.1f} {r.dispatch:10.2f} "
+        print(f"{ran:>7s} {r.layout_frames:6d} {r.frames:6d} {r.wall:7.1f} {r.fixed:7.1f} "
+              f"{r.dispatch:10.2f} "
               f"{r.frames / max(r.dispatch, 1e-9):17.1f} {r.steady_fps:15.1f} {busy:>19s} "
               f"{'-' if r.cpu is None else f'{r.cpu:.0f}':>10s}")
 
@@ -299,6 +302,9 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs of every worker count, interleaved")
     ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up job")
+    ap.add_argument("--layout-frames", type=_counts, default=None,
+                    help="comma-separated scene.layout_frames values, each worker count run "
+                         "with each, interleaved (e.g. 1,16; default: the config's)")
     ap.add_argument("--gl-calls", type=int, metavar="N", default=0,
                     help="time one worker's GL calls over N frames instead (no job)")
     args = ap.parse_args()
@@ -314,11 +320,15 @@ def main() -> None:
     if not args.no_warmup:
         run_one(cfg, min(args.frames, cfg.frames_per_shard), 1, None)
     rows = []
+    layouts = args.layout_frames or [cfg.scene.layout_frames]
     with GpuSampler() as sampler:
         for _ in range(args.repeat):
             for w in args.workers:
-                rows.append(run_one(cfg, args.frames, w, sampler))
-                print(f"  {w} workers: {rows[-1].wall:.1f} s", flush=True)
+                for n in layouts:  # frames sharing a layout (docs/scenes.md)
+                    c = replace(cfg, scene=replace(cfg.scene, layout_frames=n))
+                    rows.append(run_one(c, args.frames, w, sampler))
+                    print(f"  {w} workers, layout_frames {n}: {rows[-1].wall:.1f} s",
+                          flush=True)
     renderers = sorted({r for row in rows for r in row.renderers})
     print(f"GL renderer: {', '.join(renderers)}")
     print_table(rows, sampler_probe)
