@@ -26,7 +26,7 @@ from vhgen.scene.placement import (
     GAP_M,
     TALL_PROP_M,
     Disc,
-    inside,
+    is_free,
     place_anywhere,
     place_between,
     place_in_view,
@@ -372,9 +372,8 @@ def fill_shared(rng: np.random.Generator, shared: SharedLayout, scene: SceneConf
             for k in free:
                 slot = shared.slots[k]
                 spot = _in_slot(slot, fp.r, rng.uniform(size=2))
-                apart = all(np.hypot(spot.x - d.x, spot.z - d.z) >= spot.r + d.r + GAP_M
-                            for d in discs)
-                if (apart and (fp.r <= slot.r or _clear(spot, shared, eye))
+                if (is_free(spot, discs, None)
+                        and (fp.r <= slot.r or _clear(spot, shared, eye))
                         and _in_view(shared, eye, [*discs, spot], scene.min_visible_fraction)):
                     free.remove(k)
                     break
@@ -394,8 +393,7 @@ def fill_shared(rng: np.random.Generator, shared: SharedLayout, scene: SceneConf
     static = lay.static
     f = at
     if f.r > SLOT_M:  # wider than its slot: what it touches goes
-        keep_p = [np.hypot(f.x - p.footprint.x, f.z - p.footprint.z)
-                  >= f.r + p.footprint.r + GAP_M for p in props]
+        keep_p = [is_free(f, [p.footprint], None) for p in props]
         keep_c = [_apart(f, s) for s in solids]
         if not all(keep_p) or not all(keep_c):
             dropped["props"] += keep_p.count(False)
@@ -445,8 +443,6 @@ def _clear(d: Disc, shared: SharedLayout, eye: np.ndarray) -> bool:
     """A footprint ``d`` inside the room, clear of the camera, the props and the clutter
     of ``shared`` (other people are the caller's)."""
     lay = shared.layout
-    return (inside(lay.room, d)
-            and np.hypot(d.x - eye[0], d.z - eye[1]) >= d.r + CAMERA_CLEARANCE_M + GAP_M
-            and all(np.hypot(d.x - p.footprint.x, d.z - p.footprint.z)
-                    >= d.r + p.footprint.r + GAP_M for p in lay.props)
+    camera = Disc(float(eye[0]), float(eye[1]), CAMERA_CLEARANCE_M)
+    return (is_free(d, [camera, *(p.footprint for p in lay.props)], lay.room)
             and all(_apart(d, s) for s in lay.clutter_solids))

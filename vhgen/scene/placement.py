@@ -90,6 +90,12 @@ def _free_many(xz: np.ndarray, radius: float, others: list[Disc],
     return ok
 
 
+def is_free(d: Disc, others: list[Disc], room: Room | None) -> bool:
+    """Whether the disc ``d`` is inside the room and GAP_M from every disc of ``others``
+    (:func:`_free_many` for one disc)."""
+    return bool(_free_many(np.array([[d.x, d.z]]), d.r, others, room)[0])
+
+
 def _first_accepted(xz: np.ndarray, feasible: np.ndarray, radius: float,
                     accept: Callable[[Disc], bool] | None, tries: int) -> Disc | None:
     """The first candidate, in drawing order, that is feasible and passes ``accept``;

@@ -113,8 +113,12 @@ class ClutterLayout:
     meshes: tuple[StaticMesh, ...]
     openings: dict[int, list[tuple[float, float, float, float]]]
     dropped: int
-    solids: tuple[Solid, ...]
-    item_solids: tuple[tuple[Solid, ...], ...] = ()
+    item_solids: tuple[tuple[Solid, ...], ...]
+
+    @property
+    def solids(self) -> tuple[Solid, ...]:
+        """Every item's footprints, in order."""
+        return tuple(s for item in self.item_solids for s in item)
 
 
 def _rotate(yaw: np.ndarray, xz: np.ndarray) -> np.ndarray:
@@ -372,7 +376,6 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
     items: list[PlacedClutter] = []
     meshes: list[StaticMesh] = []
     openings: dict[int, list[tuple[float, float, float, float]]] = {}
-    placed: list[Solid] = []
     item_solids: list[tuple[Solid, ...]] = []
     dropped = 0
     drawn = []
@@ -407,7 +410,6 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
                                  shape.faces, roles[cfg.classes[pick]][shape.roles]))
         fr.add(solids, [CLUTTER_GAP_M] * len(solids))
         fr.hide([s.poly for s in solids if hides(s)], ranges)
-        placed += solids
         item_solids.append(tuple(solids))
         if shape.opening is not None and wall[k] >= 0:
             w = fr.walls[int(wall[k])]
@@ -415,8 +417,7 @@ def place_clutter(rng: np.random.Generator, sc: SceneConfig, room: Room, eye: np
             ends = sorted((s_mid + w.sign * shape.opening[0], s_mid + w.sign * shape.opening[1]))
             openings.setdefault(int(wall[k]), []).append(
                 (ends[0], ends[1], shape.opening[2], shape.opening[3]))
-    return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(placed),
-                         tuple(item_solids))
+    return ClutterLayout(tuple(items), tuple(meshes), openings, dropped, tuple(item_solids))
 
 
 # where a candidate stands: PLACEMENT_MODES' positions, and nowhere (no free wall for it)
