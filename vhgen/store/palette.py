@@ -64,7 +64,8 @@ class PaletteError(ValueError):
 def encode(values: np.ndarray, width: int | None = None) -> np.ndarray:
     """The palette encoding (uint8 bytes) of a uint16 array; ``width``: the length of its
     image rows, to store each index as its difference from the one a row above (see the
-    module docstring; None: the plain indexes). Compiled: ~0.5 ms a 640x480 frame."""
+    module docstring; None: the plain indexes). Compiled: 0.7-0.9 ms a 640x480 frame
+    here (2 cores; the NumPy code it replaced 1.5-2.0)."""
     from vhgen.store.palette_kernels import index_planes, table_of  # numba: when used
 
     flat = np.ascontiguousarray(values, dtype="<u2").reshape(-1)
