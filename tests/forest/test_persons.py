@@ -218,7 +218,8 @@ def test_eval_flag_errors_are_one_line(tmp_path, capsys, boxes_store):
 
 def test_people_test_config_is_held_out_and_covers_the_bins():
     """configs/forest/people_test.yaml: groups of 1-6, the first person 1-4 m away (the
-    others up to 1.5 m further), and no motion or seed of the training configs."""
+    others up to 1.5 m further), and no motion or seed of the training configs (the
+    forests' and the person stage's)."""
     from pathlib import Path
 
     from vhgen.job_config import JobConfig
@@ -227,7 +228,7 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
     test = JobConfig.load(configs / "people_test.yaml")
     assert test.scene.people == (1, 6)
     assert test.camera.distance_m[0] <= 1.0 and test.camera.distance_m[1] >= 3.0
-    for name in ("people_room", "people_real"):
+    for name in ("people_room", "people_real", "people_groups", "people_far"):
         train = JobConfig.load(configs / f"{name}.yaml")
         assert not {Path(m).name for m in test.motions} & {Path(m).name for m in train.motions}
         assert test.seed != train.seed
