@@ -14,7 +14,7 @@ out alone (:func:`vhgen.forest.from_stores.cut_out_view`); then, for each real f
 probability, the forest's probes scaled to ``--fx`` (the focal length of the real
 frames' camera when they do not record one; default: the forest's training one). Nothing
 is chosen here: it shows where the forest transfers less
-(docs/forest.md, "The forest's vote on real people").
+(docs/forest_log.md, "The forest's vote on real people").
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ axis across the image through their median depth by each angle (degrees; positiv
 lower body farther, as a camera looking further down sees a person, or a person leaning
 forward) and seen again through the same camera (:func:`tilt_view`: the store's camera;
 for the real frames one of ``--fx`` centred on the image). Nothing is chosen here
-(docs/forest.md, "The camera's focal length" and "What the real people's vote does and
+(docs/forest_log.md, "The camera's focal length" and "What the real people's vote does and
 does not depend on").
 """
 

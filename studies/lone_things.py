@@ -9,7 +9,7 @@ labels them with each forest and its person stage, as ``forest label --segment``
 Prints the share of the things' measured pixels called a person and the frames with any:
 what a stage learnt from people alone (``forest person-stage --cut-out``) risks, since a
 pipeline that removed the background can leave an object alone. Nothing is chosen here
-(docs/forest.md, "Lone things as no people").
+(docs/forest_log.md, "Lone things as no people").
 """
 
 from __future__ import annotations

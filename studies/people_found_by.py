@@ -14,7 +14,7 @@ share of people found
   under 0.5, 0.5-0.7, 0.7-0.9, 0.9 or more; for every person and for those beyond 4.5 m.
 
 ``--store`` reads another copy of the store than the JSON names. Nothing is chosen here;
-it says where the misses are (docs/forest.md, "People beyond 4.5 m").
+it says where the misses are (docs/forest_log.md, "People beyond 4.5 m").
 """
 
 from __future__ import annotations
