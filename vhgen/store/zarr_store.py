@@ -52,21 +52,24 @@ CODECS = ("zstd", "lz4")
 # and decodes them no slower, at ~11 ms a frame to encode; levels 9-15 gain at most 1 kB
 # more (85.3 kB against 86.1 at 11) for 2-6x the encode time, which a GPU node's CPU
 # workers pay on every frame, and 16+ (another 15%) take as long as a frame; the uint8
-# arrays take level 12 (17-23% smaller, about a millisecond each to encode). Byte or bit
+# arrays took level 12 (17-23% smaller, 1-3 ms each to encode; below). Byte or bit
 # shuffling before zstd (blosc) made every array but instances larger. With the palette
 # (vhgen.store.palette, output.palette: the default with zstd) the uint16 arrays take
 # another 9-11% less at the same level and encode faster. Since 2026-11-29 the palette's
 # indexes are stored as differences down the rows (configuration.rows): depth at zstd 3
 # is then 2% smaller than it was at 7 and encodes in 0.4x the time (3.7 against 9.1 ms
 # a frame on a cluttered_room store; at 7 it would be 9% smaller than before, in the
-# old time), so depth takes level 3. The codecs of each array are recorded in its
-# zarr.json, which is what readers go by: stores written with other levels or codecs
-# read the same.
+# old time), so depth takes level 3. The uint8 arrays took level 12 until later that day;
+# at 3 the three together are 3.3 kB a frame larger (15.8 against 12.5 kB, of about 100)
+# and encode in 0.7 against 6-8 ms (one core), which a GPU node's CPU workers pay on
+# every frame (issue 28), so they take 3 as well (docs/performance.md "Store size"). The
+# codecs of each array are recorded in its zarr.json, which is what readers go by: stores
+# written with other levels or codecs read the same.
 ARRAYS: dict[str, tuple[str, int, int]] = {
     "depth": ("uint16", 0, 3),
-    "labels": ("uint8", 0, 12),
-    "instances": ("uint8", 0, 12),
-    "classes": ("uint8", 0, 12),
+    "labels": ("uint8", 0, 3),
+    "instances": ("uint8", 0, 3),
+    "classes": ("uint8", 0, 3),
     "raw": ("uint16", 2047, 7),
 }
 REQUIRED_ARRAYS = ("depth", "labels")
