@@ -165,3 +165,64 @@ def test_damaged_chunk_spoils_only_its_frame(store, damaged):
     with pytest.raises(ShardError, match="depth shard 0 .*frame 2"):
         bad.read_into([("depth", 2, out[2])])
 
+
+
+@pytest.mark.parametrize("palette", [True, False])
+def test_shards_written_directly_are_the_bytes_zarr_writes(tmp_path, palette):
+    """write_shard writes the layout create_store makes straight to its shard files
+    (write_shard_file): every file byte for byte what zarr writes for the same frames,
+    a last shard with fewer frames than its slots and a frame all fill value included;
+    with and without the palette (uint16 arrays, raw at its own level)."""
+    import zarr
+
+    from vhgen.store.shards import write_shard_file, writes_directly
+    from vhgen.store.zarr_store import ARRAYS, create_store, open_store, write_shard
+
+    rng = np.random.default_rng(5)
+    frames, per, h, w = 11, 4, 40, 56
+    depth = (rng.integers(500, 4000, (frames, 1, 1))
+             + rng.integers(0, 8, (frames, h, w))).astype(np.uint16)
+    depth[3] = 0  # all fill value: still a chunk of its own, as write_shard asks of zarr
+    labels = rng.integers(0, 4, (frames, h, w), dtype=np.uint8)
+    data = {"depth": depth, "labels": labels, "instances": (labels > 0).astype(np.uint8),
+            "classes": labels // 2, "raw": (2047 - depth // 4).astype(np.uint16)}
+    paths = {how: tmp_path / f"{how}.zarr" for how in ("direct", "zarr")}
+    for path in paths.values():
+        create_store(path, num_frames=frames, height=h, width=w, frames_per_shard=per,
+                     compression_level=None, attrs={}, arrays=list(data), palette=palette)
+    for s in range(-(-frames // per)):
+        part = {k: v[s * per:(s + 1) * per] for k, v in data.items()}
+        write_shard(paths["direct"], s, per, part["depth"], part["labels"], part["raw"],
+                    extra={k: part[k] for k in ("instances", "classes")})
+        root = open_store(paths["zarr"], mode="r+")
+        for name, arr in part.items():
+            root[name].with_config({"write_empty_chunks": True})[s * per:
+                                                                   s * per + len(arr)] = arr
+    files = sorted(p.relative_to(paths["zarr"]) for p in paths["zarr"].rglob("*")
+                   if p.is_file() and "/c/" in f"/{p.relative_to(paths['zarr'])}")
+    assert len(files) == len(data) * 3
+    for rel in files:
+        assert (paths["direct"] / rel).read_bytes() == (paths["zarr"] / rel).read_bytes(), rel
+    assert not list(paths["direct"].rglob("*.tmp"))
+    layouts = {name: array_layout(paths["direct"], name) for name in data}
+    assert all(writes_directly(layout) for layout in layouts.values())
+    assert layouts["labels"].level == ARRAYS["labels"][2]
+    assert layouts["raw"].level == ARRAYS["raw"][2]
+    back = zarr.open_group(str(paths["direct"]), mode="r")
+    for name, arr in data.items():
+        assert np.array_equal(back[name][:], arr)
+    with pytest.raises(ValueError, match="not written directly"):
+        write_shard_file(layouts["labels"], 2, labels[8:10])  # the shard holds 3 frames
+
+
+def test_lz4_shards_are_written_through_zarr(lz4_store):
+    """A layout write_shard_file does not write (blosc: output.codec lz4) goes through
+    zarr, as before; lz4_store was written that way and reads back."""
+    from vhgen.store.shards import writes_directly
+
+    assert not writes_directly(array_layout(lz4_store, "depth"))
+    reader = ShardReader(lz4_store, ["depth"], threads=1)
+    out = reader.empty("depth", 2)
+    reader.read_into([("depth", 0, out[0]), ("depth", 21, out[1])])
+    assert out[0].any() and out[1].any()
+    reader.close()

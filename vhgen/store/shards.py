@@ -56,6 +56,8 @@ class ArrayLayout:
     compressor: str  # "zstd", "blosc" or "" (bytes only)
     swap: bool  # stored byte order differs from this machine's
     palette: bool = False  # vhgen.palette before the compressor (uint16 arrays)
+    rows: bool = False  # the palette's indexes as differences down the rows
+    level: int | None = None  # the zstd level (zstd arrays)
 
     @property
     def frame_shape(self) -> tuple[int, ...]:
@@ -94,11 +96,14 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
     inner = [c.get("name") for c in conf.get("codecs", [])]
     index = [c.get("name") for c in conf.get("index_codecs", [])]
     palette = inner[1:2] == ["vhgen.palette"]
+    rows = False
     if palette:
-        if dtype != np.uint16 or conf["codecs"][1].get("configuration", {}).get(
-                "typesize", 2) != 2:
+        pconf = conf["codecs"][1].get("configuration", {})
+        if dtype != np.uint16 or pconf.get("typesize", 2) != 2:
             return None
+        rows = pconf.get("rows", False) is True
         inner = inner[:1] + inner[2:]
+    level = conf["codecs"][-1].get("configuration", {}).get("level")
     if inner not in (["bytes", "zstd"], ["bytes", "blosc"], *([] if palette else [["bytes"]])
                      ) or index not in (["bytes"], ["bytes", "crc32c"]):
         return None
@@ -112,7 +117,65 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         index_at_end=conf.get("index_location", "end") == "end",
         index_crc=index[-1] == "crc32c", compressor=inner[-1] if len(inner) > 1 else "",
         swap=dtype.itemsize > 1 and endian != sys.byteorder and not palette,
-        palette=palette)
+        palette=palette, rows=rows,
+        level=int(level) if inner[-1] == "zstd" and isinstance(level, int) else None)
+
+
+def writes_directly(layout: ArrayLayout | None) -> bool:
+    """Whether :func:`write_shard_file` writes this layout (the one ``create_store``
+    makes with zstd: the index at the end with its crc32c, little-endian values)."""
+    return (layout is not None and layout.compressor == "zstd" and layout.level is not None
+            and layout.index_at_end and layout.index_crc and not layout.swap)
+
+
+def write_shard_file(layout: ArrayLayout, shard: int, frames: np.ndarray,
+                     threads: int = 1) -> None:
+    """Write shard ``shard`` of a :func:`writes_directly` layout whole, ``frames`` (every
+    frame of the shard, (n, H, W)): the bytes zarr's sharding codec writes for it (every
+    inner chunk, even one all fill value, as ``write_shard`` asks of zarr; the chunks in
+    frame order, then one (offset, nbytes) pair each, empty past the array's end, and the
+    index's crc32c; tested byte for byte), without zarr's async codec pipeline, which
+    costs about 5 ms of Python a frame on top of the encoding itself. ``threads``: chunks
+    encoded at once (numcodecs' zstd and the palette's kernels release the GIL). The file
+    is written under a temporary name and renamed, so a reader never sees half of it."""
+    import numcodecs.zstd  # type: ignore[import-untyped]
+
+    from vhgen.store import palette
+
+    first, last = layout.frames_of(shard)
+    if not writes_directly(layout) or frames.shape != (last - first + 1,
+                                                       *layout.frame_shape):
+        raise ValueError(f"{layout.name}: shard {shard} is not written directly "
+                         f"({frames.shape} frames)")
+    width = layout.frame_shape[-1] if layout.rows else None
+    little = layout.dtype.newbyteorder("<")
+
+    def encode(frame: np.ndarray) -> bytes:
+        if layout.palette:
+            data = palette.encode(frame, width)
+        else:
+            data = np.ascontiguousarray(frame, dtype=little)
+        return numcodecs.zstd.compress(data, layout.level)
+
+    if threads > 1 and len(frames) > 1:
+        with ThreadPoolExecutor(min(threads, len(frames))) as pool:
+            chunks = list(pool.map(encode, frames))
+    else:
+        chunks = [encode(f) for f in frames]
+    index = np.full((layout.frames_per_shard, 2), EMPTY, "<u8")
+    sizes = np.array([len(c) for c in chunks], np.uint64)
+    index[:len(chunks), 0] = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.uint64)
+    index[:len(chunks), 1] = sizes
+    body = index.tobytes()
+    path = layout.shard_path(shard)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as f:
+        for c in chunks:
+            f.write(c)
+        f.write(body)
+        f.write(_crc32c(body).to_bytes(4, "little"))
+    os.replace(tmp, path)
 
 
 def blosc_content_size(chunk: bytes | memoryview) -> int | None:
@@ -279,7 +342,7 @@ class ShardReader:
     def _read_shard(self, layout: ArrayLayout, shard: int,
                     group: list[tuple[int, np.ndarray]]) -> None:
         import numcodecs.blosc  # type: ignore[import-untyped]
-        import numcodecs.zstd  # type: ignore[import-untyped]
+        import numcodecs.zstd
 
         from vhgen.store import palette
 

@@ -177,7 +177,8 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     holds further (n, H, W) arrays by name (``instances``, ``classes``), each of which
     the store must have, as it must ``raw`` when it is given; the caller leaves out the
     arrays the store was made without."""
-    root = open_store(path, mode="r+")
+    from vhgen.store.shards import array_layout, write_shard_file, writes_directly
+
     start = shard * frames_per_shard
     n = depth.shape[0]
     if labels.shape != depth.shape:
@@ -185,17 +186,35 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     if depth.dtype != np.uint16 or labels.dtype != np.uint8:
         raise StoreError(f"shard {shard}: dtypes {depth.dtype}/{labels.dtype}, "
                          "expected uint16/uint8")
-    _writer(root["depth"])[start:start + n] = depth
-    _writer(root["labels"])[start:start + n] = labels
-    for name, arr in {**({} if raw is None else {"raw": raw}), **(extra or {})}.items():
-        if name not in root:
-            raise StoreError(f"{path}: no {name!r} array (the store was made by an older "
-                             "vhgen); generate it again with --overwrite")
-        dtype = np.dtype(ARRAYS[name][0])
+    arrays = {"depth": depth, "labels": labels,
+              **({} if raw is None else {"raw": raw}), **(extra or {})}
+    for name, arr in arrays.items():
+        dtype = np.dtype(ARRAYS[name][0]) if name in ARRAYS else None
         if arr.shape != depth.shape or arr.dtype != dtype:
             raise StoreError(f"shard {shard}: {name} {arr.shape} {arr.dtype}, expected "
                              f"{depth.shape} {dtype}")
+    root = None
+    for name, arr in arrays.items():
+        # the layout create_store makes (zstd, sharded by frames): written straight to
+        # its shard file, the bytes zarr would write; any other through zarr
+        layout = array_layout(path, name)
+        if writes_directly(layout) and layout is not None and layout.frames_of(shard) == (
+                start, start + n - 1) and layout.frames_per_shard == frames_per_shard:
+            write_shard_file(layout, shard, arr, _codec_threads())
+            continue
+        if root is None:
+            root = open_store(path, mode="r+")
+        if name not in root:
+            raise StoreError(f"{path}: no {name!r} array (the store was made by an older "
+                             "vhgen); generate it again with --overwrite")
         _writer(root[name])[start:start + n] = arr
+
+
+def _codec_threads() -> int:
+    """The threads this process compresses with (:func:`set_codec_threads`)."""
+    import zarr
+
+    return max(1, int(zarr.config.get("threading.max_workers") or os.cpu_count() or 1))
 
 
 def completed_shards(path: str | Path) -> set[int]:
