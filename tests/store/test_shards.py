@@ -175,7 +175,7 @@ def test_shards_written_directly_are_the_bytes_zarr_writes(tmp_path, palette):
     with and without the palette (uint16 arrays, raw at its own level)."""
     import zarr
 
-    from vhgen.store.shards import write_shard_file, writes_directly
+    from vhgen.store.shard_files import write_shard_file, writes_directly
     from vhgen.store.zarr_store import ARRAYS, create_store, open_store, write_shard
 
     rng = np.random.default_rng(5)
@@ -218,7 +218,7 @@ def test_shards_written_directly_are_the_bytes_zarr_writes(tmp_path, palette):
 def test_lz4_shards_are_written_through_zarr(lz4_store):
     """A layout write_shard_file does not write (blosc: output.codec lz4) goes through
     zarr, as before; lz4_store was written that way and reads back."""
-    from vhgen.store.shards import writes_directly
+    from vhgen.store.shard_files import writes_directly
 
     assert not writes_directly(array_layout(lz4_store, "depth"))
     reader = ShardReader(lz4_store, ["depth"], threads=1)

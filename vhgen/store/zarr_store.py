@@ -177,7 +177,7 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     holds further (n, H, W) arrays by name (``instances``, ``classes``), each of which
     the store must have, as it must ``raw`` when it is given; the caller leaves out the
     arrays the store was made without."""
-    from vhgen.store.shards import array_layout, write_shard_file, writes_directly
+    from vhgen.store.shard_files import array_layout, write_shard_file, writes_directly
 
     start = shard * frames_per_shard
     n = depth.shape[0]
