@@ -2,6 +2,7 @@
 
     python benchmarks/bench_codecs.py STORE [--frames 64] [--arrays depth labels ...]
         [--codecs zstd-3 blosc-zstd-5-shuffle ...] [--against OTHER_STORE]
+    python benchmarks/bench_codecs.py STORE --write [--frames 64] [--levels default uint8:12]
 
 Reads up to ``--frames`` frames of each array of a finished store (for example one made
 by ``vhgen generate configs/scenes/cluttered_room.yaml --max-frames 128``) and compresses
@@ -19,7 +20,13 @@ pass. ``x store``: the candidate's bytes over the store's own for that array (it
 chunks, from the shard indexes). ``--against`` compares two stores of the same frames
 written with different codecs instead: ms per frame to decode each array through the
 training reader (``vhgen.store.shards.ShardReader``, one thread), the stores taking
-turns.
+turns. ``--write`` times the worker's last step instead: ``write_shard`` of the store's
+first ``--frames`` frames (every array it has) into new stores, with one codec thread as
+a GPU node's worker has, straight to the shard files (what vhgen does) and through
+zarr-python (what it did before), at the levels of ``--levels`` (``default``: the
+per-array levels of ``ARRAYS``; ``N``: every array at N; ``uint8:N``: the uint8 arrays at
+N, as vhgen wrote them before 2026-11-29), all taking turns for ``--repeat`` passes; ms per frame
+(median and least) and kB per frame of the arrays written.
 """
 
 from __future__ import annotations
@@ -164,6 +171,86 @@ def read_ms(stores: list[Path], names: list[str], frames: int, repeat: int
     return {k: 1e3 * v / frames for k, v in best.items()}
 
 
+def _set_level(store: Path, names: list[str], level: int) -> None:
+    """Set the zstd level of arrays ``names`` of a new store in their zarr.json (which
+    zarr and vhgen's writer both go by)."""
+    import json
+
+    for name in names:
+        meta_path = store / name / "zarr.json"
+        meta = json.loads(meta_path.read_text())
+        inner = meta["codecs"][0]["configuration"]["codecs"]
+        assert inner[-1]["name"] == "zstd", inner
+        inner[-1]["configuration"]["level"] = level
+        meta_path.write_text(json.dumps(meta))
+
+
+def write_ms(store: Path, frames: int, levels: list[str], repeat: int) -> None:
+    """Print the --write table (see the module docstring)."""
+    import shutil
+    import tempfile
+
+    from vhgen.store.zarr_store import (
+        ARRAYS,
+        _writer,
+        create_store,
+        open_store,
+        set_codec_threads,
+        write_shard,
+    )
+
+    set_codec_threads(1)
+    root = open_store(store)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        names = [n for n in ARRAYS if n in set(root.array_keys())]
+    n = min(frames, root["depth"].shape[0])
+    data = {k: np.ascontiguousarray(root[k][:n]) for k in names}
+    per = int(root["depth"].shards[0]) if root["depth"].shards else 8
+    h, w = data["depth"].shape[1:]
+    runs: dict[tuple[str, str], list[float]] = {}
+    sizes: dict[tuple[str, str], float] = {}
+    work = Path(tempfile.mkdtemp(prefix="vhgen-write-"))
+    try:
+        for _ in range(repeat):
+            for level in levels:
+                for how in ("direct", "zarr"):
+                    out = work / f"{how}-{level}.zarr"
+                    shutil.rmtree(out, ignore_errors=True)
+                    every = None if level == "default" or ":" in level else int(level)
+                    create_store(out, num_frames=n, height=h, width=w, frames_per_shard=per,
+                                 attrs={}, arrays=names, compression_level=every)
+                    if ":" in level:  # uint8:L, the per-array levels but the uint8 ones
+                        _set_level(out, [k for k in names if ARRAYS[k][0] == "uint8"],
+                                   int(level.split(":")[1]))
+                    t0 = time.perf_counter()
+                    for s in range(-(-n // per)):
+                        part = {k: v[s * per:(s + 1) * per] for k, v in data.items()}
+                        if how == "direct":
+                            write_shard(out, s, per, part["depth"], part["labels"],
+                                        part.get("raw"), extra={k: part[k] for k in part
+                                                               if k not in ("depth", "labels",
+                                                                            "raw")})
+                        else:
+                            group = open_store(out, mode="r+")
+                            for k, v in part.items():
+                                _writer(group[k])[s * per:s * per + len(v)] = v
+                    runs.setdefault((level, how), []).append(time.perf_counter() - t0)
+                    sizes[level, how] = sum(f.stat().st_size for k in names
+                                            for f in (out / k).rglob("*")
+                                            if f.is_file() and f.name != "zarr.json") / n
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print(f"{store}: write_shard of the first {n} frames ({', '.join(names)}), shards of "
+          f"{per}, one codec thread, {repeat} passes in turns")
+    print("| levels | written | ms per frame (median / least) | kB per frame |")
+    print("|---|---|---:|---:|")
+    for (level, how), v in runs.items():
+        what = "straight to the shard files" if how == "direct" else "through zarr-python"
+        print(f"| {level} | {what} | {1e3 * np.median(v) / n:.2f} / {1e3 * min(v) / n:.2f} "
+              f"| {sizes[level, how] / 1e3:.1f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("store", type=Path)
@@ -174,7 +261,15 @@ def main() -> None:
     ap.add_argument("--against", type=Path, help="another store of the same frames: "
                     "instead of the candidates, decode both stores' arrays through the "
                     "store reader, side by side")
+    ap.add_argument("--write", action="store_true",
+                    help="time write_shard, straight to the files and through zarr")
+    ap.add_argument("--levels", nargs="*", default=["default", "uint8:12"],
+                    help="with --write: zstd levels: default (ARRAYS'), N (every array) "
+                    "or uint8:N (ARRAYS' but the uint8 arrays at N, as before 2026-11-29)")
     args = ap.parse_args()
+    if args.write:
+        write_ms(args.store, args.frames, args.levels, max(args.repeat, 3))
+        return
 
     import numcodecs.blosc
 
