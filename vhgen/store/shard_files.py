@@ -8,7 +8,8 @@ chunks of one frame each (bytes little-endian, for uint16 arrays then
 lz4``) and, at its end, the shard index: one (offset, nbytes) uint64 pair per inner chunk,
 then the index's crc32c. :mod:`vhgen.store.shards` reads such files without zarr;
 :func:`write_shard_file` writes them (``write_shard`` of :mod:`vhgen.store.zarr_store`
-calls it). This module imports nothing else of vhgen's store, so both can use it.
+calls it). Of vhgen's store it imports only the palette codec (when writing), so both
+can use it without an import cycle.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -107,7 +108,7 @@ def array_layout(store: str | Path, name: str) -> ArrayLayout | None:
         level=int(level) if inner[-1] == "zstd" and isinstance(level, int) else None)
 
 
-def writes_directly(layout: ArrayLayout | None) -> bool:
+def writes_directly(layout: ArrayLayout | None) -> TypeGuard[ArrayLayout]:
     """Whether :func:`write_shard_file` writes this layout (the one ``create_store``
     makes with zstd: the index at the end with its crc32c, little-endian values)."""
     return (layout is not None and layout.compressor == "zstd" and layout.level is not None

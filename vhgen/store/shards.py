@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from vhgen.errors import ShardError, StoreError
-from vhgen.store.shard_files import (  # noqa: F401  (ArrayLayout, array_layout: this module's API)
+from vhgen.store.shard_files import (
     EMPTY,
     ArrayLayout,
     array_layout,

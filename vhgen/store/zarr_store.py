@@ -189,7 +189,9 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
     arrays = {"depth": depth, "labels": labels,
               **({} if raw is None else {"raw": raw}), **(extra or {})}
     for name, arr in arrays.items():
-        dtype = np.dtype(ARRAYS[name][0]) if name in ARRAYS else None
+        if name not in ARRAYS:
+            raise StoreError(f"{path}: unknown array {name!r} (known: {', '.join(ARRAYS)})")
+        dtype = np.dtype(ARRAYS[name][0])
         if arr.shape != depth.shape or arr.dtype != dtype:
             raise StoreError(f"shard {shard}: {name} {arr.shape} {arr.dtype}, expected "
                              f"{depth.shape} {dtype}")
@@ -198,8 +200,8 @@ def write_shard(path: str | Path, shard: int, frames_per_shard: int, depth: np.n
         # the layout create_store makes (zstd, sharded by frames): written straight to
         # its shard file, the bytes zarr would write; any other through zarr
         layout = array_layout(path, name)
-        if writes_directly(layout) and layout is not None and layout.frames_of(shard) == (
-                start, start + n - 1) and layout.frames_per_shard == frames_per_shard:
+        if (writes_directly(layout) and layout.frames_per_shard == frames_per_shard
+                and layout.frames_of(shard) == (start, start + n - 1)):
             write_shard_file(layout, shard, arr, _codec_threads())
             continue
         if root is None:
