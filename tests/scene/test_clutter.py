@@ -330,6 +330,52 @@ def test_clutter_never_intersects_and_keeps_people_visible(describer, seed):
     assert len(desc.clutter) + desc.dropped["clutter"] <= n[1]
 
 
+def test_compiled_screening_places_every_item_as_the_reference(describer, monkeypatch):
+    """The compiled first fit (vhgen.scene.clutter.fit_kernel) picks, for every item of
+    many frames, the candidate the NumPy reference picks, with the same footprints (bit
+    for bit) and the same distances of those that hide people; both refuse the same
+    items. Crowded rooms (10-16 items, 2-3 people, props that hide them) exercise every
+    test, the people's visibility and the TRIES cut included."""
+    import vhgen.scene.clutter.place as place
+
+    fast, ref = place._first_fit, place._first_fit_reference
+    seen = {"items": 0, "refused": 0, "hiding": 0}
+
+    def both(*args):
+        a, b = fast(*args), ref(*args)
+        seen["items"] += 1
+        assert (a is None) == (b is None)
+        if b is None:
+            seen["refused"] += 1
+            return b
+        assert a[0] == b[0]
+        for x, y in zip(a[1], b[1], strict=True):
+            assert np.array_equal(x.poly, y.poly) and (x.y0, x.y1, x.inside) == (
+                y.y0, y.y1, y.inside)
+        np.testing.assert_allclose(a[2], b[2], rtol=1e-12)
+        seen["hiding"] += bool(b[2])
+        return b
+
+    monkeypatch.setattr(place, "_first_fit", both)
+    for seed in range(40):
+        _describe(describer, 7000 + seed)
+    assert seen["items"] > 400 and seen["refused"] > 20 and seen["hiding"] > 20, seen
+
+
+def test_a_worker_compiles_the_screening_once(asset_dir):
+    """warm() (a worker's set-up) compiles first_fit for the types placement passes: a
+    cluttered frame adds no second signature (no compile in the first frame)."""
+    from vhgen.pipeline.describe import FrameDescriber
+    from vhgen.pipeline.job import prepare_job
+    from vhgen.scene.clutter.fit_kernel import first_fit, warm
+
+    warm()
+    d = FrameDescriber(prepare_job(JobConfig.load("cluttered_room"), asset_dir=asset_dir))
+    for frame in range(3):
+        assert d.describe(frame).clutter
+    assert len(first_fit.signatures) == 1, first_fit.signatures
+
+
 def test_cluttered_room_density_over_seeds(asset_dir):
     """The shipped preset: most items asked for find a place, of every kind, against
     walls, in corners and on the floor."""

@@ -58,6 +58,9 @@ class FrameWorker:
                     np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
                     labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
                     projector_depth=np.full((h, w), 2.0, np.float32))
+            if cfg.scene.clutter is not None:  # and clutter placement's
+                from vhgen.scene.clutter.fit_kernel import warm
+                warm()
         except VhgenError as e:
             self.setup_error = e
 

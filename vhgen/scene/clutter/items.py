@@ -65,6 +65,23 @@ class ClutterShape:
     def top(self) -> float:
         return max(s[2] for s in self.solids)
 
+    @cached_property
+    def solid_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                   np.ndarray]:
+        """Its footprints as arrays: corners (S, P, 2) (the first ``counts[j]`` of each,
+        the rest zero), counts (S,) int64, y0 and y1 (S,) float64, inside (S,) bool."""
+        size = max(len(q) for q, *_ in self.solids)
+        corners = np.zeros((len(self.solids), size, 2))
+        for j, (q, *_) in enumerate(self.solids):
+            corners[j, :len(q)] = q
+        out = (corners, np.array([len(q) for q, *_ in self.solids], np.int64),
+               np.array([s[1] for s in self.solids], np.float64),
+               np.array([s[2] for s in self.solids], np.float64),
+               np.array([s[3] for s in self.solids], bool))
+        for a in out:
+            a.setflags(write=False)
+        return out
+
 
 def sample_params(kind: str, rng: np.random.Generator, fill: float) -> dict[str, float]:
     """The kind's top-level sizes, uniform in its record's ranges (one draw each, from the

@@ -177,7 +177,7 @@ class _Frame:
         self.wall_off = (self.wall_n * self.wall_a).sum(1)
         self.wall_start = (self.wall_e * self.wall_a).sum(1)
         # signed distance to each wall as one product: [x, z, 1] @ planes, (3, 4)
-        self.planes = np.vstack([self.wall_n.T, -self.wall_off])
+        self.planes = np.ascontiguousarray(np.vstack([self.wall_n.T, -self.wall_off]))
         self.wall_flush = FLUSH_M * self.wall_n  # a wall item's origin off its wall
         # the obstacles, rows 0 .. count - 1 of arrays sized for the frame's items
         # (polys, normals, boxes, heights and gaps are views of those rows)
@@ -460,7 +460,39 @@ def _first_fit(shape: ClutterShape, yaw: np.ndarray, origin: np.ndarray, ok: np.
                wall: np.ndarray, fr: _Frame
                ) -> tuple[int, list[Solid], list[float]] | None:
     """The first candidate, in drawing order, that passes every test, its solids, and
-    the distances from the camera of its solids that hide people (:func:`_hides`)."""
+    the distances from the camera of its solids that hide people (:func:`hides`):
+    :func:`_first_fit_reference`'s answer, from the compiled screening
+    (:func:`vhgen.scene.clutter.fit_kernel.first_fit`), which stops at the first fit."""
+    from vhgen.scene.clutter.fit_kernel import first_fit
+
+    if not KINDS[shape.kind].pierces_ceiling and shape.top > fr.room.height_m:
+        return None
+    idx = np.flatnonzero(ok)
+    yaw, origin, wall = yaw[idx], origin[idx], wall[idx]
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    least = np.where(wall < 0, WALL_GAP_M, 0.0) - 1e-9
+    corners, counts, y0, y1, inside = shape.solid_table
+    tall = inside & (y1 >= HIDES_ABOVE_M) & (y0 < HIDES_FROM_M)
+    ranges = np.zeros(len(counts))
+    k = first_fit(cos, sin, origin, least, corners, counts, y0, y1, inside, tall,
+                  fr.planes, fr.eye, fr.base, fr.half_fov, MIN_RANGE_M, VISIBLE_SHARE, TRIES,
+                  fr.polys, fr.normals, fr.boxes, fr.heights, fr.gaps, fr.samples, fr.dist,
+                  fr.covered, fr.min_visible, ranges)
+    if k < 0:
+        return None
+    # the footprints turned as the reference turns them, for the one candidate
+    c, s, at = cos[k:k + 1, None], sin[k:k + 1, None], origin[k:k + 1]
+    return (int(idx[k]),
+            [Solid(_turn(c, s, poly, at)[0], lo, hi, into)
+             for poly, lo, hi, into in shape.solids],
+            [float(ranges[j]) for j in np.flatnonzero(tall)])
+
+
+def _first_fit_reference(shape: ClutterShape, yaw: np.ndarray, origin: np.ndarray,
+                         ok: np.ndarray, wall: np.ndarray, fr: _Frame
+                         ) -> tuple[int, list[Solid], list[float]] | None:
+    """:func:`_first_fit` as NumPy arrays, every test on every candidate at once (the
+    reference the compiled screening is tested against)."""
     if not KINDS[shape.kind].pierces_ceiling and shape.top > fr.room.height_m:
         return None
     idx = np.flatnonzero(ok)
