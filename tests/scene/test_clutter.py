@@ -331,7 +331,7 @@ def test_clutter_never_intersects_and_keeps_people_visible(describer, seed):
 
 
 def test_compiled_screening_places_every_item_as_the_reference(describer, monkeypatch):
-    """The compiled first fit (vhgen.scene.clutter.fit_kernel) picks, for every item of
+    """The compiled first fit (vhgen.scene.clutter.place_kernels) picks, for every item of
     many frames, the candidate the NumPy reference picks, with the same footprints (bit
     for bit) and the same distances of those that hide people; both refuse the same
     items. Crowded rooms (10-16 items, 2-3 people, props that hide them) exercise every
@@ -362,18 +362,65 @@ def test_compiled_screening_places_every_item_as_the_reference(describer, monkey
     assert seen["items"] > 400 and seen["refused"] > 20 and seen["hiding"] > 20, seen
 
 
+def test_compiled_candidates_are_the_references_bits(describer, monkeypatch):
+    """The compiled candidates (place_kernels.candidates) draw the same yaws, origins,
+    modes, walls and feasibility as the NumPy reference, bit for bit and dtype for dtype,
+    from the same draws, for every item of many frames; frames where no wall cell is free
+    (floor spots only) among them."""
+    import vhgen.scene.clutter.place as place
+
+    fast, ref = place._candidates, place._candidates_reference
+    seen = {"items": 0, "floor": 0, "no_wall": 0}
+
+    def both(rng, shape, fr):
+        state = rng.bit_generator.state
+        a = fast(rng, shape, fr)
+        after = rng.bit_generator.state
+        rng.bit_generator.state = state
+        b = ref(rng, shape, fr)
+        assert rng.bit_generator.state == after  # the same draws
+        for x, y in zip(a, b, strict=True):
+            assert x.dtype == y.dtype and np.array_equal(x, y)
+        seen["items"] += 1
+        seen["floor"] += bool((b[3] < 0).any())
+        x0, x1 = shape.x_extent
+        seen["no_wall"] += fr.wall_cdf(x1 - x0, float(shape.inner_box[1, 1]),
+                                       *shape.inner_heights) is None
+        return b
+
+    monkeypatch.setattr(place, "_candidates", both)
+    for seed in range(30):
+        _describe(describer, 9000 + seed)
+    assert seen["items"] > 300 and seen["floor"] > 100 and seen["no_wall"] > 5, seen
+
+
+@pytest.mark.parametrize("n", [1, 5, 7, 8, 9, 15, 16, 17, 63, 64, 100, 127, 128])
+def test_pairwise_sum_is_numpys(n):
+    """The kernels' sum of the wall cells' weights is NumPy's, bit for bit (its eight
+    running sums), for every length up to 128: a frame's 4 x 32 cells and others."""
+    from vhgen.scene.clutter.place_kernels import _pairwise_sum
+
+    rng = np.random.default_rng(n)
+    for _ in range(20):
+        a = rng.uniform(0, 6, n) * (rng.uniform(size=n) < 0.7)
+        assert _pairwise_sum(a) == a.sum()
+    w = rng.uniform(0, 6, (4, 32))
+    assert _pairwise_sum(w.ravel()) == w.sum()
+
+
 def test_a_worker_compiles_the_screening_once(asset_dir):
-    """warm() (a worker's set-up) compiles first_fit for the types placement passes: a
-    cluttered frame adds no second signature (no compile in the first frame)."""
+    """warm() (a worker's set-up) compiles the placement kernels for the types placement
+    passes: cluttered frames add no second signature (no compile in the first frame)."""
     from vhgen.pipeline.describe import FrameDescriber
     from vhgen.pipeline.job import prepare_job
-    from vhgen.scene.clutter.fit_kernel import first_fit, warm
+    from vhgen.scene.clutter.place_kernels import candidates, first_fit, warm
 
     warm()
     d = FrameDescriber(prepare_job(JobConfig.load("cluttered_room"), asset_dir=asset_dir))
     for frame in range(3):
         assert d.describe(frame).clutter
     assert len(first_fit.signatures) == 1, first_fit.signatures
+    assert len(candidates.signatures) == 1, candidates.signatures
 
 
 def test_cluttered_room_density_over_seeds(asset_dir):

@@ -59,7 +59,7 @@ class FrameWorker:
                     labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
                     projector_depth=np.full((h, w), 2.0, np.float32))
             if cfg.scene.clutter is not None:  # and clutter placement's
-                from vhgen.scene.clutter.fit_kernel import warm
+                from vhgen.scene.clutter.place_kernels import warm
                 warm()
         except VhgenError as e:
             self.setup_error = e

@@ -54,6 +54,9 @@ HIDES_FROM_M = 1.0
 # where each wall cell starts / ends and its middle, as fractions of the wall (C + 1,), (C,)
 _CELL_ENDS = np.arange(WALL_CELLS + 1) / WALL_CELLS
 _CELL_MIDS = (np.arange(WALL_CELLS) + 0.5) / WALL_CELLS
+# the compiled candidates sum the cells' weights as NumPy does up to 128 values
+# (place_kernels.PAIRWISE_MAX)
+assert 4 * WALL_CELLS <= 128
 _CELL_ENDS.setflags(write=False)
 _CELL_MIDS.setflags(write=False)
 # The hot loops' reductions as ufuncs: the arithmetic of the ndarray methods (x.min(1) is
@@ -314,7 +317,34 @@ def _candidates(rng: np.random.Generator, shape: ClutterShape, fr: _Frame
     """:data:`CANDIDATES` placements: yaw (K,), origin (K, 2), mode index (K,) into the
     kind's modes, wall (K,) (-1 on the floor), and whether each is possible (K,). Wall
     spots are drawn where the camera looks; corners at the end of the wall nearer to a
-    drawn spot; floor spots in the camera's view."""
+    drawn spot; floor spots in the camera's view. :func:`_candidates_reference`'s values
+    bit for bit, from :func:`vhgen.scene.clutter.place_kernels.candidates` (NumPy still
+    takes the sines and cosines)."""
+    from vhgen.scene.clutter.place_kernels import candidates
+
+    u = rng.uniform(size=(CANDIDATES, 5))
+    mode_cdf, mode_places = _MODE_CDF[shape.kind]
+    x0, x1 = shape.x_extent
+    bearing = fr.base + (2 * u[:, 2] - 1) * fr.half_fov
+    fyaw = u[:, 4] * 2 * np.pi
+    yaw, origin = np.empty(CANDIDATES), np.empty((CANDIDATES, 2))
+    mode, wall = np.empty(CANDIDATES, np.int64), np.empty(CANDIDATES, np.int64)
+    ok = np.empty(CANDIDATES, bool)
+    candidates(u, mode_cdf, mode_places, x0, x1, float(shape.inner_box[1, 1]),
+               *shape.inner_heights, shape.centre, fyaw, np.cos(fyaw), np.sin(fyaw),
+               np.sin(bearing), np.cos(bearing), fr.seen_weight, fr.cells, fr.lengths,
+               fr.wall_a, fr.wall_e, fr.wall_n, fr.wall_off, fr.wall_start, fr.wall_yaw,
+               fr.wall_sign, fr.wall_flush, fr.eye, fr.polys, fr.heights, fr.gaps,
+               CORNER_GAP_M, MIN_RANGE_M, FLOOR_REACH_M, _NOWHERE, _CORNER, _FLOOR,
+               yaw, origin, mode, wall, ok)
+    return yaw, origin, mode, wall, ok
+
+
+def _candidates_reference(rng: np.random.Generator, shape: ClutterShape, fr: _Frame
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     np.ndarray]:
+    """:func:`_candidates` as NumPy arrays (the reference the compiled one is tested
+    against)."""
     u = rng.uniform(size=(CANDIDATES, 5))
     mode_cdf, mode_places = _MODE_CDF[shape.kind]
     mode = np.minimum(np.searchsorted(mode_cdf, u[:, 0], side="right"), len(mode_cdf) - 1)
@@ -462,8 +492,8 @@ def _first_fit(shape: ClutterShape, yaw: np.ndarray, origin: np.ndarray, ok: np.
     """The first candidate, in drawing order, that passes every test, its solids, and
     the distances from the camera of its solids that hide people (:func:`hides`):
     :func:`_first_fit_reference`'s answer, from the compiled screening
-    (:func:`vhgen.scene.clutter.fit_kernel.first_fit`), which stops at the first fit."""
-    from vhgen.scene.clutter.fit_kernel import first_fit
+    (:func:`vhgen.scene.clutter.place_kernels.first_fit`), which stops at the first fit."""
+    from vhgen.scene.clutter.place_kernels import first_fit
 
     if not KINDS[shape.kind].pierces_ceiling and shape.top > fr.room.height_m:
         return None

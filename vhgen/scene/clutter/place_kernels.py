@@ -31,6 +31,10 @@ import math
 import numba
 import numpy as np
 
+# the most values NumPy sums with one set of eight running sums (its PW_BLOCKSIZE); a
+# frame's wall cells (4 x WALL_CELLS) must not exceed it
+PAIRWISE_MAX = 128
+
 
 @numba.njit(cache=True)
 def _wrap(a):
@@ -248,18 +252,157 @@ def first_fit(cos, sin, origin, least, pts, npts, y0, y1, inside, tall, planes, 
     return -1
 
 
+@numba.njit(cache=True)
+def _pairwise_sum(a):
+    """NumPy's float64 sum of ``a`` (at most :data:`PAIRWISE_MAX` values: its pairwise
+    summation keeps eight running sums up to that many), bit for bit."""
+    n = a.shape[0]
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    r = np.empty(8)
+    for j in range(8):
+        r[j] = a[j]
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[i]
+        i += 1
+    return res
+
+
+@numba.njit(cache=True)
+def _right_of(cdf, v):
+    """np.searchsorted(cdf, v, side="right") for a non-decreasing cdf."""
+    lo, hi = 0, cdf.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True)
+def _wall_cdf(width, depth, y0, y1, seen_weight, cells, wall_n, wall_off, wall_e,
+              wall_start, ob_polys, ob_heights, ob_gaps, cdf):
+    """The reference's ``_Frame.wall_cdf`` into ``cdf`` (4 * C,); False when no wall cell
+    is free (the reference's None)."""
+    walls, c_all = seen_weight.shape
+    weight = seen_weight.copy()
+    for w in range(walls):
+        for m in range(ob_polys.shape[0]):
+            if not (ob_heights[m, 0] < y1 and ob_heights[m, 1] > y0):
+                continue
+            g = ob_gaps[m]
+            near = math.inf
+            a_lo = math.inf
+            a_hi = -math.inf
+            for i in range(ob_polys.shape[1]):
+                x, z = ob_polys[m, i, 0], ob_polys[m, i, 1]
+                near = min(near, x * wall_n[w, 0] + z * wall_n[w, 1] - wall_off[w])
+                along = x * wall_e[w, 0] + z * wall_e[w, 1] - wall_start[w]
+                a_lo = min(a_lo, along)
+                a_hi = max(a_hi, along)
+            if not near < depth + g:
+                continue
+            s0, s1 = a_lo - g, a_hi + g
+            for c in range(c_all):
+                if s0 < cells[w, c + 1] + width / 2 and s1 > cells[w, c] - width / 2:
+                    weight[w, c] = 0.0
+    flat = weight.ravel()
+    total = _pairwise_sum(flat)
+    if total <= 0:
+        return False
+    run = 0.0
+    for i in range(flat.shape[0]):
+        run += flat[i]
+        cdf[i] = run / total
+    return True
+
+
+@numba.njit(cache=True)
+def candidates(u, mode_cdf, mode_places, x0, x1, depth, y0, y1, centre, fyaw, fcos, fsin,
+               bsin, bcos, seen_weight, cells, lengths, wall_a, wall_e, wall_n, wall_off,
+               wall_start, wall_yaw, wall_sign, wall_flush, eye, ob_polys, ob_heights,
+               ob_gaps, corner_gap, min_range, reach, nowhere, corner_mode, floor_mode,
+               yaw, origin, mode, wall, ok):
+    """The reference's ``_candidates`` into yaw (K,), origin (K, 2), mode, wall (K,)
+    int64 and ok (K,) bool, bit for bit: the same products, sums and comparisons in the
+    same order. u (K, 5): the draws; the floor spots' sines and cosines come in computed
+    by NumPy (fyaw, fcos, fsin: the headings u[:, 4] * 2 pi and theirs; bsin, bcos: of
+    the bearings); the item's extent along the wall x0..x1, its depth from the wall and
+    heights y0..y1, its footprints' centre (2,); the frame's walls, cells and obstacles.
+    """
+    walls, c_all = seen_weight.shape
+    cdf = np.empty(walls * c_all)
+    free = _wall_cdf(x1 - x0, depth, y0, y1, seen_weight, cells, wall_n, wall_off, wall_e,
+                     wall_start, ob_polys, ob_heights, ob_gaps, cdf)
+    if not free:  # no free wall in view: only floor spots can work
+        flat = seen_weight.ravel()
+        total = _pairwise_sum(flat)
+        run = 0.0
+        for i in range(flat.shape[0]):
+            run += flat[i]
+            cdf[i] = run / total
+    for k in range(u.shape[0]):
+        mode[k] = min(_right_of(mode_cdf, u[k, 0]), mode_cdf.shape[0] - 1)
+        place = mode_places[mode[k]]
+        if not free and place != floor_mode:
+            place = nowhere
+        cell = min(_right_of(cdf, u[k, 1]), walls * c_all - 1)
+        w = cell // c_all
+        cell = cell % c_all
+        length = lengths[w]
+        spot = (cell + u[k, 2]) / c_all * length
+        sign = wall_sign[w]
+        off0, off1 = sign * x0, sign * x1
+        lo_off, hi_off = min(off0, off1), max(off0, off1)
+        s_lo = corner_gap - lo_off
+        s_hi = length - corner_gap - hi_off
+        s = min(max(spot - (lo_off + hi_off) / 2, s_lo), s_hi)
+        if place == corner_mode:
+            s = s_lo if spot < length / 2 else s_hi
+        yaw[k] = wall_yaw[w]
+        origin[k, 0] = wall_a[w, 0] + s * wall_e[w, 0] + wall_flush[w, 0]
+        origin[k, 1] = wall_a[w, 1] + s * wall_e[w, 1] + wall_flush[w, 1]
+        wall[k] = w
+        ok[k] = s_hi >= s_lo and place != nowhere
+        if place == floor_mode:
+            dist = min_range + u[k, 3] * (reach - min_range)
+            c, s = fcos[k], fsin[k]
+            origin[k, 0] = eye[0] + dist * bsin[k] - (c * centre[0] + s * centre[1])
+            origin[k, 1] = eye[1] + dist * bcos[k] - (-s * centre[0] + c * centre[1])
+            yaw[k] = fyaw[k]
+            wall[k] = -1
+            ok[k] = True
+
+
 def warm() -> None:
-    """Load (or compile) :func:`first_fit` for the argument types placement passes (the
-    item's footprint table read-only, everything else writable), so that a worker does it
-    before its first frame."""
+    """Load (or compile) :func:`candidates` and :func:`first_fit` for the argument types
+    placement passes (the item's footprint table read-only, everything else writable), so
+    that a worker does it in its set-up, not in its first frame."""
     def frozen(a: np.ndarray) -> np.ndarray:
         a.setflags(write=False)
         return a
 
-    one, two = np.zeros(1), np.zeros((1, 2))
+    k, one, two, walls = 2, np.zeros(2), np.zeros((2, 2)), np.ones((4, 2))
+    no_polys, no_heights, no_gaps = np.zeros((0, 8, 2)), np.zeros((0, 2)), np.zeros(0)
+    candidates(np.full((k, 5), 0.5), np.ones(1), np.zeros(1, np.int64), 0.0, 0.5, 0.3,
+               0.0, 1.0, np.zeros(2), one, one, one, one, one, np.ones((4, 32)),
+               np.ones((4, 33)), np.ones(4), walls, walls, walls, np.zeros(4), np.zeros(4),
+               np.zeros(4), np.ones(4), walls, np.zeros(2), no_polys, no_heights, no_gaps,
+               0.01, 1.0, 7.0, -1, 1, 2, np.empty(k), np.empty((k, 2)),
+               np.empty(k, np.int64), np.empty(k, np.int64), np.empty(k, bool))
     first_fit(one, one, two, one, frozen(np.zeros((1, 4, 2))), frozen(np.full(1, 4)),
               frozen(np.zeros(1)), frozen(np.ones(1)), frozen(np.ones(1, bool)),
               np.zeros(1, bool), np.zeros((3, 4)), np.zeros(2), 0.0, 1.0, 1.0, 0.3, 30,
-              np.zeros((0, 8, 2)), np.zeros((0, 8, 2)), np.zeros((0, 4)), np.zeros((0, 2)),
-              np.zeros(0), np.zeros((0, 64)), np.zeros(0), np.zeros((0, 64), bool), 0.5,
-              np.zeros(1))
+              no_polys, np.zeros((0, 8, 2)), np.zeros((0, 4)), no_heights, no_gaps,
+              np.zeros((0, 64)), np.zeros(0), np.zeros((0, 64), bool), 0.5, np.zeros(1))
