@@ -409,18 +409,23 @@ def test_pairwise_sum_is_numpys(n):
 
 
 def test_a_worker_compiles_the_screening_once(asset_dir):
-    """warm() (a worker's set-up) compiles the placement kernels for the types placement
-    passes: cluttered frames add no second signature (no compile in the first frame)."""
+    """The warm() calls of a worker's set-up compile the placement kernels for the types
+    placement passes: cluttered frames add no second signature (no compile in the first
+    frame)."""
     from vhgen.pipeline.describe import FrameDescriber
     from vhgen.pipeline.job import prepare_job
     from vhgen.scene.clutter.place_kernels import candidates, first_fit, warm
+    from vhgen.scene.placement_kernels import all_visible
+    from vhgen.scene.placement_kernels import warm as warm_placement
 
     warm()
+    warm_placement()
     d = FrameDescriber(prepare_job(JobConfig.load("cluttered_room"), asset_dir=asset_dir))
     for frame in range(3):
         assert d.describe(frame).clutter
     assert len(first_fit.signatures) == 1, first_fit.signatures
     assert len(candidates.signatures) == 1, candidates.signatures
+    assert len(all_visible.signatures) == 1, all_visible.signatures
 
 
 def test_cluttered_room_density_over_seeds(asset_dir):

@@ -58,9 +58,13 @@ class FrameWorker:
                     np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
                     labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
                     projector_depth=np.full((h, w), 2.0, np.float32))
-            if cfg.scene.clutter is not None:  # and clutter placement's
-                from vhgen.scene.clutter.place_kernels import warm
-                warm()
+            # and placement's (people and props kept in view; clutter)
+            if not cfg.scene.is_person_only:
+                from vhgen.scene.placement_kernels import warm as warm_placement
+                warm_placement()
+            if cfg.scene.clutter is not None:
+                from vhgen.scene.clutter.place_kernels import warm as warm_clutter
+                warm_clutter()
         except VhgenError as e:
             self.setup_error = e
 

@@ -26,11 +26,11 @@ from vhgen.scene.placement import (
     GAP_M,
     TALL_PROP_M,
     Disc,
+    all_visible,
     is_free,
     place_anywhere,
     place_between,
     place_in_view,
-    visible_fraction,
     yaw_transform,
 )
 from vhgen.scene.props import parametric
@@ -147,9 +147,8 @@ def layout_scene(rng: np.random.Generator, scene: SceneConfig, camera: CameraPos
 
     def keeps_people_visible(d: Disc) -> bool:
         """No person is hidden beyond min_visible_fraction by the tall prop ``d``."""
-        blockers = people_discs + walls + [d]
-        return all(visible_fraction(eye, t, [o for o in blockers if o is not t])
-                   >= sc.min_visible_fraction for t in people_discs)
+        return all_visible(eye, people_discs + walls + [d], len(people_discs),
+                           sc.min_visible_fraction)
 
     props: list[PlacedProp] = []
     prop_tops: list[float] = []
@@ -231,9 +230,8 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
 
     def keeps_people_visible(d: Disc) -> bool:
         """No person (the new one included) is hidden beyond min_visible_fraction."""
-        everyone = people_discs + [d]
-        return all(visible_fraction(eye, t, [o for o in everyone if o is not t])
-                   >= sc.min_visible_fraction for t in everyone)
+        return all_visible(eye, people_discs + [d], len(people_discs) + 1,
+                           sc.min_visible_fraction)
 
     n_people = (count if count is not None
                 else int(rng.integers(sc.people[0], sc.people[1] + 1)))

@@ -78,6 +78,19 @@ def visible_fraction(eye_xz: np.ndarray, target: Disc, occluders: list[Disc],
     return float(1.0 - covered.mean())
 
 
+def all_visible(eye_xz: np.ndarray, discs: list[Disc], targets: int,
+                min_visible: float, samples: int = 64) -> bool:
+    """Whether each of the first ``targets`` of ``discs`` keeps at least ``min_visible``
+    of its width in view past all the other discs: ``all(visible_fraction(eye_xz, t,
+    [o for o in discs if o is not t]) >= min_visible for t in discs[:targets])`` in one
+    compiled call (:mod:`vhgen.scene.placement_kernels`)."""
+    from vhgen.scene.placement_kernels import all_visible as kernel
+
+    rows = np.array([(d.x, d.z, d.r) for d in discs], np.float64).reshape(-1, 3)
+    return bool(kernel(float(eye_xz[0]), float(eye_xz[1]), rows, targets,
+                       float(min_visible), samples))
+
+
 def _free_many(xz: np.ndarray, radius: float, others: list[Disc],
                room: Room | None) -> np.ndarray:
     """Which of the (K, 2) candidate centres give a disc of ``radius`` inside the room

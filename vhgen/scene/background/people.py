@@ -18,7 +18,7 @@ from vhgen.scene.background.background_frame import PlacedBackground
 from vhgen.scene.background.floor import CELL_M, reachable
 from vhgen.scene.background.load import Backgrounds
 from vhgen.scene.description import Person
-from vhgen.scene.placement import GAP_M, PLACEMENT_TRIES, Disc, visible_fraction, yaw_transform
+from vhgen.scene.placement import GAP_M, PLACEMENT_TRIES, Disc, all_visible, yaw_transform
 from vhgen.scene.scene_config import SceneConfig
 from vhgen.scene.truth import VISIBILITY_TOLERANCE_M
 
@@ -102,8 +102,7 @@ class _Floor:
             if real_visible_fraction(self.intr, cam, self.bg.depth_mm) < self.min_visible:
                 continue
             everyone = [*self.discs, spot]
-            if any(visible_fraction(eye, d, [o for o in everyone if o is not d])
-                   < self.min_visible for d in everyone):
+            if not all_visible(eye, everyone, len(everyone), self.min_visible):
                 continue
             self.discs.append(spot)
             return Person(instance, local.avatar_id, local.pose_index, t @ local.bones,
