@@ -40,7 +40,7 @@ done
 #     of job writes, merges and reads back (pyarrow 25 could not merge a person-only job);
 #     the job on Ray only with the first: its workers write the manifest parts with the
 #     same code and pyarrow as the local executor's, and each Ray job costs ~20 s
-jobs=""
+jobs="person_only room real_background person_only_ray"  # (the cluttered job: floor and newest)
 for v in 18.1.0 21.0.0 25.0.1; do
   env="$work/vhgen-pyarrow-$v"
   $uv venv -q -p "$py" "$env"

@@ -1,8 +1,9 @@
 """The floors check's Python side (run by ``scripts/check_floors.sh`` in each venv).
 
   floors.py jobs OUT [NAME...]
-                            run a person-only, a room and a real-background job (and the
-                            person-only one on Ray) into OUT with the vhgen of this
+                            run a person-only, a room, a cluttered-room and a
+                            real-background job (and the person-only one on Ray) into
+                            OUT with the vhgen of this
                             interpreter, read each back with vhgen.dataset, open each
                             manifest with this pyarrow; NAMEs: only those of JOBS
   floors.py read STORE...   open each store's manifest.parquet with this pyarrow alone
@@ -26,6 +27,9 @@ REPO = Path(__file__).resolve().parent.parent
 # (name, config, extra flags): every kind of job, a few frames each
 JOBS = [("person_only", "default", ["--max-frames", "6"]),
         ("room", "living_room", ["--max-frames", "6"]),
+        # clutter placement's numba kernels and their NumPy references: the same arrays
+        # with the floors' numpy and numba as with the newest
+        ("cluttered", "cluttered_room", ["--max-frames", "6"]),
         ("real_background", str(REPO / "docs" / "examples" / "real_room.yaml"),
          ["--max-frames", "6"]),
         ("person_only_ray", "default", ["--max-frames", "6", "--executor", "ray"])]
