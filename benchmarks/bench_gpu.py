@@ -189,6 +189,8 @@ def load_config(args: argparse.Namespace) -> JobConfig:
         cfg = replace(cfg, sensor=cfg.sensor.with_backend(args.sensor_backend))
     if args.frames_per_shard:
         cfg = replace(cfg, frames_per_shard=args.frames_per_shard)
+    if args.frame_step:  # more poses of each clip: a plan with more frames
+        cfg = replace(cfg, poses=replace(cfg.poses, frame_step=args.frame_step))
     return cfg
 
 
@@ -293,6 +295,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=32, help="frames of each job")
     ap.add_argument("--frames-per-shard", type=int, default=0,
                     help="override the config's output.frames_per_shard")
+    ap.add_argument("--frame-step", type=int, default=0,
+                    help="override the config's poses.frame_step (4: a 4,800-frame plan of "
+                    "cluttered_room over the CMU corpus)")
     ap.add_argument("--motions", nargs="+", help="BVH files or folders instead of the "
                     "config's motions (e.g. ../shared/mocap/cmu)")
     ap.add_argument("--sensor", help="a sensor config instead of the scene's (e.g. ideal)")
