@@ -21,6 +21,12 @@ import numpy as np
 
 
 @numba.njit(cache=True)
+def wrap(a):
+    """An angle (radians) wrapped to [-pi, pi)."""
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+@numba.njit(cache=True)
 def _visible(ex, ez, discs, t, samples):
     """visible_fraction of discs[t] past every other disc (rows x, z, r)."""
     dx, dz = discs[t, 0] - ex, discs[t, 1] - ez
@@ -46,9 +52,8 @@ def _visible(ex, ez, discs, t, samples):
         oh = math.asin(min(1.0, discs[o, 2] / max(odist, 1e-9)))
         oc = math.atan2(ox, oz)
         for i in range(samples):
-            # the difference wrapped to [-pi, pi) (the reference: (-pi, pi], by atan2)
-            x = (angles[i] - oc + math.pi) % (2 * math.pi) - math.pi
-            if abs(x) <= oh:
+            # the difference wrapped (the reference: to (-pi, pi], by atan2)
+            if abs(wrap(angles[i] - oc)) <= oh:
                 covered[i] = True
     hidden = 0
     for i in range(samples):

@@ -31,14 +31,11 @@ import math
 import numba
 import numpy as np
 
+from vhgen.scene.placement_kernels import wrap as _wrap
+
 # the most values NumPy sums with one set of eight running sums (its PW_BLOCKSIZE); a
 # frame's wall cells (4 x WALL_CELLS) must not exceed it
 PAIRWISE_MAX = 128
-
-
-@numba.njit(cache=True)
-def _wrap(a):
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 @numba.njit(cache=True)
@@ -64,16 +61,15 @@ def _distance(ex, ez, poly, n):
 
 
 @numba.njit(cache=True)
-def _extent(poly, n, bx, bz, lo_hi):
-    """lo_hi[0], lo_hi[1]: the least and greatest projection of poly[:n] on (bx, bz)."""
+def _extent(poly, n, bx, bz):
+    """The least and greatest projection of poly[:n] on (bx, bz)."""
     lo = math.inf
     hi = -math.inf
     for i in range(n):
         v = poly[i, 0] * bx + poly[i, 1] * bz
         lo = min(lo, v)
         hi = max(hi, v)
-    lo_hi[0] = lo
-    lo_hi[1] = hi
+    return lo, hi
 
 
 @numba.njit(cache=True)
@@ -82,8 +78,6 @@ def _separated(a, na, b, b_normals, gap):
     unit edge normals ``b_normals`` (zero: a repeated corner) along one of both
     polygons' edge normals."""
     nb = b.shape[0]
-    ea = np.empty(2)
-    eb = np.empty(2)
     for i in range(na + nb):
         if i < na:
             j = i + 1 if i + 1 < na else 0
@@ -95,9 +89,9 @@ def _separated(a, na, b, b_normals, gap):
             ax, az = b_normals[i - na, 0], b_normals[i - na, 1]
         if ax == 0 and az == 0:
             continue
-        _extent(a, na, ax, az, ea)
-        _extent(b, nb, ax, az, eb)
-        if ea[0] - eb[1] >= gap or eb[0] - ea[1] >= gap:
+        lo_a, hi_a = _extent(a, na, ax, az)
+        lo_b, hi_b = _extent(b, nb, ax, az)
+        if lo_a - hi_b >= gap or lo_b - hi_a >= gap:
             return True
     return False
 
@@ -161,11 +155,7 @@ def first_fit(cos, sin, origin, least, pts, npts, y0, y1, inside, tall, planes, 
     ex, ez = eye[0], eye[1]
     turned = np.empty((s_all, pts.shape[1], 2))
     near = np.empty(s_all)
-    check_people = samples.shape[0] > 0
-    any_tall = False
-    for j in range(s_all):
-        any_tall = any_tall or tall[j]
-    check_people = check_people and any_tall
+    check_people = samples.shape[0] > 0 and tall.any()
     passed = 0
     for k in range(k_all):
         c, s = cos[k], sin[k]
