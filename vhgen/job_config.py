@@ -91,6 +91,10 @@ class JobConfig:
     codec: str = "zstd"  # output.codec: zstd (smallest) or lz4 (fastest to read)
     palette: bool = True  # output.palette: uint16 arrays through vhgen.palette (default: with zstd)
     arrays: tuple[str, ...] = DEFAULT_ARRAYS  # output.arrays: the arrays the store holds
+    # render.batch_frames: with sensor.backend gl, the frames a worker draws and senses
+    # before it reads any back (two batches in flight); 0: each frame read back before
+    # the next is drawn. The frames are the same either way
+    batch_frames: int = 4
 
     @property
     def class_names(self) -> tuple[str, ...]:
@@ -178,7 +182,8 @@ class JobConfig:
         if not isinstance(palette, bool):
             raise ConfigError(path, "output.palette", f"must be true or false, got {palette!r}")
         ren = d.get("render") or {}
-        check_keys(ren, {"backend", "skinning", "gpus_per_worker"}, set(), path, "render.")
+        check_keys(ren, {"backend", "skinning", "gpus_per_worker", "batch_frames"}, set(),
+                   path, "render.")
         skinning = ren.get("skinning", "lbs")
         if skinning not in ("lbs", "dqs"):
             raise ConfigError(path, "render.skinning", f"must be lbs or dqs, got {skinning!r}")
@@ -242,7 +247,9 @@ class JobConfig:
                                    integer=True) if "compression_level" in out else None,
             backend=backend, skinning=skinning, num_workers=num_workers, scene=scene,
             source=str(path), gpus_per_worker=gpus, codec=codec, arrays=arrays,
-            palette=palette)
+            palette=palette,
+            batch_frames=_num(ren, "batch_frames", path, "render.", lo=0, hi=64, integer=True,
+                              default=4))
 
 
 def _arrays(value: Any, sensor: SensorConfig, src) -> tuple[str, ...]:

@@ -66,3 +66,70 @@ def test_gl_sensor_job_writes_a_store_close_to_the_cpu_one(tmp_path):
     assert abs(res["quant_step"]["sim"] / res["quant_step"]["real"] - 1) < 0.05
     assert abs(res["holes_per_frame"]["sim"] / res["holes_per_frame"]["real"] - 1) < 0.15
     assert res["border_band"]["distance"] < 0.5
+
+
+BATCH_JOB = """
+name: batches
+seed: 5
+motions: [builtin:demo]
+labels: pcl25
+sensor: {{preset: openni_525, backend: gl}}
+poses: {{frame_step: 40}}
+avatars: {{count: 2}}
+camera: {{preset: tv_top_kinect, distance_m: [1.8, 2.6]}}
+scene:
+  floor: true
+  room: {{width_m: [3, 4], depth_m: [5, 5.5], height_m: [2.4, 2.8], yaw_deg: [-25, 25]}}
+  people: [1, 2]
+  clutter: {{count: [4, 6], kinds: [window, shelf, plant, boxes]}}
+output: {{frames_per_shard: {per_shard}}}
+render: {{backend: egl, batch_frames: {batch}}}
+num_workers: 1
+"""
+
+
+@pytest.mark.gl
+def test_frames_in_batches_are_the_frames_one_by_one(tmp_path):
+    """With the GL sensor a worker draws and senses render.batch_frames frames, two
+    batches in flight, before it reads any back, and takes the window glass out on the
+    GPU: every array and manifest row is what reading each frame back before the next
+    gives (glass in view included; batches that do not divide a shard)."""
+    import pyarrow.parquet as pq
+    import zarr
+
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.driver import run_job
+
+    frames = 10
+    stores = {}
+    for batch in (0, 3, 8):
+        p = tmp_path / f"b{batch}.yaml"
+        p.write_text(BATCH_JOB.format(per_shard=5, batch=batch))
+        cfg = JobConfig.load(p)
+        assert cfg.batch_frames == batch
+        stores[batch] = tmp_path / f"b{batch}.zarr"
+        run_job(cfg, stores[batch], max_frames=frames, executor="local")
+    ref = zarr.open_group(str(stores[0]), mode="r")
+    glass = JobConfig.load(tmp_path / "b0.yaml").scene.no_return_ids
+    classes = np.asarray(ref["classes"][:])
+    assert sum(np.isin(c, glass).any() for c in classes) >= 2  # frames with glass in view
+    rows = pq.read_table(stores[0] / "manifest.parquet").to_pylist()
+    assert len(rows) == frames
+    for batch in (3, 8):
+        got = zarr.open_group(str(stores[batch]), mode="r")
+        for key in ("depth", "labels", "instances", "classes"):
+            np.testing.assert_array_equal(np.asarray(got[key][:]), np.asarray(ref[key][:]),
+                                          err_msg=f"batch {batch}: {key}")
+        assert pq.read_table(stores[batch] / "manifest.parquet").to_pylist() == rows
+
+
+@pytest.mark.parametrize("value", ["-1", "2.5", "yes", "65"])
+def test_a_bad_batch_size_is_one_line_naming_the_field(tmp_path, value):
+    from vhgen.errors import ConfigError
+    from vhgen.job_config import JobConfig
+
+    p = tmp_path / "b.yaml"
+    p.write_text(f"name: b\nmotions: [builtin:demo]\nrender: {{batch_frames: {value}}}\n")
+    with pytest.raises(ConfigError, match="render.batch_frames") as e:
+        JobConfig.load(p)
+    assert "\n" not in str(e.value) and str(p) in str(e.value)

@@ -3,7 +3,10 @@
 Per frame: :class:`~vhgen.pipeline.describe.FrameDescriber` builds the pure description
 from the job's plan, :class:`~vhgen.render.scene_renderer.SceneRenderer` draws its views, the sensor
 model runs on the whole scene, and a :class:`~vhgen.store.record.FrameRecord` (the
-manifest row) is made from the description and the outputs.
+manifest row) is made from the description and the outputs. With the GL sensor the
+frames go to the GPU in batches (``render.batch_frames``), two in flight: the CPU
+describes the next batch and reads the last one back while the GPU draws and senses
+(:meth:`FrameGenerator.frames`).
 
 :class:`FrameGenerator` owns one GL context (created once, in ``__init__``) and is what a
 Ray actor wraps; it is also used directly by tests and benchmarks without Ray.
@@ -14,6 +17,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -27,7 +31,7 @@ from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.geometry import unpack_ids
 from vhgen.scene.truth import joint_visibility
 from vhgen.sensor.composite import simulate_over_real
-from vhgen.sensor.simulator import FrameSensor, SensorModel
+from vhgen.sensor.simulator import FrameSensor, SensorModel, SensorOutput
 from vhgen.store.manifest import write_part
 from vhgen.store.record import FrameRecord, PersonRecord
 from vhgen.store.zarr_store import write_shard
@@ -103,6 +107,13 @@ class FrameGenerator:
                                            background=bool(cfg.scene.backgrounds))
         self.scene = SceneRenderer(self.renderer, self.describer.body, cfg.scene.class_id)
         self._sensor_json = json.dumps(cfg.sensor.to_dict(), sort_keys=True)
+        # with the GL sensor, frames go to the GPU in batches, two in flight, each read
+        # back while the CPU describes the next (not over real backgrounds, composited on
+        # the CPU, nor with a projector view, drawn into the same target)
+        self.batch = cfg.batch_frames if (
+            self.gl_sensor is not None and not cfg.scene.backgrounds
+            and "projector_depth" not in cfg.sensor.needs) else 0
+        self._staging: list[Any] = []
 
     def describe(self, frame: int) -> FrameDescription:
         return self.describer.describe(frame)
@@ -127,10 +138,7 @@ class FrameGenerator:
                                      real_mm=bg.depth_mm, labels=packed,
                                      real_label=self.cfg.scene.class_id(bg.class_name) << 16,
                                      incidence=cam.incidence)
-        labels, instances, classes = unpack_ids(out.labels if out.labels is not None
-                                                else packed)
-        return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
-                           self._record(desc, cam, out.holes, int(out.valid.sum()), labels))
+        return self._output(desc, cam, out)
 
     def render_frame(self, frame: int) -> FrameOutput:
         """Describe and render frame ``frame`` of the plan."""
@@ -197,6 +205,81 @@ class FrameGenerator:
             people=[self._person(desc, p, view) for p in desc.people],
             camera_pitch_deg=pitch, camera_roll_deg=roll)
 
+    def frames(self, start: int, stop: int) -> Iterator[tuple[FrameDescription, FrameOutput]]:
+        """Describe and render frames [start, stop), in order: one by one, or with the GL
+        sensor in batches (:attr:`batch`), the CPU describing batch k+1 and reading batch
+        k-1 back while the GPU works on batch k. The same frames either way."""
+        if self.batch <= 0:
+            for f in range(start, stop):
+                desc = self.describe(f)
+                yield desc, self.render(desc)
+            return
+        from collections import deque
+
+        from vhgen.render.context import gl_flush
+
+        inflight: deque[tuple[int, list[FrameDescription]]] = deque()
+        for i, first in enumerate(range(start, stop, self.batch)):
+            descs = [self.describe(f) for f in range(first, min(first + self.batch, stop))]
+            if len(inflight) == 2:
+                yield from self._collect(*inflight.popleft())
+            self._submit(i % 2, descs)
+            gl_flush(self.ctx)
+            inflight.append((i % 2, descs))
+        while inflight:
+            yield from self._collect(*inflight.popleft())
+
+    def _slot_bytes(self) -> int:
+        assert self.gl_sensor is not None
+        return 4 * (self.renderer.view_floats + self.gl_sensor.output_words)
+
+    def _submit(self, which: int, descs: list[FrameDescription]) -> None:
+        """Draw and sense ``descs`` into staging buffer ``which``, one slot a frame: the
+        targets' read-back, then the sensor's outputs. Nothing waits for the GPU."""
+        gl = self.gl_sensor
+        assert gl is not None
+        slot = self._slot_bytes()
+        while len(self._staging) <= which:
+            self._staging.append(None)
+        buf = self._staging[which]
+        if buf is None or buf.size < slot * len(descs):
+            if buf is not None:
+                buf.release()
+            buf = self._staging[which] = self.ctx.buffer(reserve=slot * self.batch)
+        view_bytes = 4 * self.renderer.view_floats
+        for j, desc in enumerate(descs):
+            self.scene.submit(desc)
+            self.renderer.read_view_into(buf, j * slot)
+            gl.queue_target(self.renderer, desc.noise_rng(), buf, j * slot + view_bytes,
+                            glass=desc.no_return)
+
+    def _collect(self, which: int, descs: list[FrameDescription]
+                 ) -> Iterator[tuple[FrameDescription, FrameOutput]]:
+        """Read the frames of staging buffer ``which`` back (waiting for the GPU where it
+        is not done) and make their outputs as :meth:`render` does."""
+        from vhgen.render.scene_renderer import without_glass
+
+        gl = self.gl_sensor
+        assert gl is not None
+        buf = self._staging[which]
+        slot = self._slot_bytes()
+        nv = self.renderer.view_floats
+        n = self.cfg.sensor.intrinsics.width * self.cfg.sensor.intrinsics.height
+        for j, desc in enumerate(descs):
+            data = buf.read(size=slot, offset=j * slot)
+            floats = np.frombuffer(data, np.float32, count=nv)
+            view = self.renderer.view_of(floats[:nv - n], floats[nv - n:])
+            view, _ = without_glass(view, desc.no_return)
+            out = gl.output_of(np.frombuffer(data, np.uint32, offset=4 * nv),
+                               labels_dtype=view.ids.dtype)
+            yield desc, self._output(desc, view, out)
+
+    def _output(self, desc: FrameDescription, view: View, out: SensorOutput) -> FrameOutput:
+        labels, instances, classes = unpack_ids(out.labels if out.labels is not None
+                                                else view.ids)
+        return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
+                           self._record(desc, view, out.holes, int(out.valid.sum()), labels))
+
     def run_task(self, store: str, shard: int, start: int, stop: int) -> ShardResult:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""
         t = time.perf_counter()
@@ -208,11 +291,9 @@ class FrameGenerator:
         raw = np.zeros((n, h, w), np.uint16) if keep_raw else None
         records = []
         dropped = {"people": 0, "props": 0}
-        for i, f in enumerate(range(start, stop)):
-            desc = self.describe(f)
+        for i, (desc, o) in enumerate(self.frames(start, stop)):
             for k, v in desc.dropped.items():
                 dropped[k] = dropped.get(k, 0) + v
-            o = self.render(desc)
             depth[i] = o.depth_mm
             ids["labels"][i], ids["instances"][i], ids["classes"][i] = (o.labels, o.instances,
                                                                         o.classes)
@@ -229,6 +310,10 @@ class FrameGenerator:
                            time.perf_counter() - t)
 
     def close(self) -> None:
+        for buf in self._staging:
+            if buf is not None:
+                buf.release()
+        self._staging = []
         self.scene.release()
         self.renderer.release()
         release = getattr(self.sensor, "release", None)

@@ -126,6 +126,7 @@ def create_context(backend: str = "egl", *, device_index: int = 0,
         hint = ("install libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri" if backend == "egl"
                 else "install libosmesa6")
         raise RenderError(f"cannot create a {backend} OpenGL context: {e} ({hint})") from None
+    ctx.extra = {"flush": _gl_function(backend, "glFlush")}
     renderer = ctx.info.get("GL_RENDERER", "?")
     log.info("GL context: backend=%s renderer=%s version=%s", backend, renderer,
              ctx.info.get("GL_VERSION", "?"))
@@ -134,6 +135,34 @@ def create_context(backend: str = "egl", *, device_index: int = 0,
         raise RenderError(f"GL_RENDERER is {renderer!r}, which lacks the required "
                           f"{require_renderer!r} (fallback to software rendering?)")
     return ctx
+
+
+def gl_flush(ctx) -> None:
+    """``glFlush`` on ``ctx`` (which moderngl does not offer): the commands queued so far
+    go to the GPU now, so it works on them while this thread does something else, instead
+    of when the next read-back asks for their results. Nothing on a context that
+    :func:`create_context` did not make."""
+    flush = (ctx.extra or {}).get("flush") if isinstance(ctx.extra, dict) else None
+    if flush is not None:
+        flush()
+
+
+def _gl_function(backend: str, name: str):
+    """A GL function without arguments or result, by the backend's own loader (None where
+    it has no such function)."""
+    if backend == "osmesa":
+        lib = ctypes.CDLL(ctypes.util.find_library("OSMesa") or "libOSMesa.so.8")
+        loader = lib.OSMesaGetProcAddress
+    else:
+        try:
+            lib = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
+        except OSError:
+            return None
+        loader = lib.eglGetProcAddress
+    loader.restype = ctypes.c_void_p
+    loader.argtypes = [ctypes.c_char_p]
+    addr = loader(name.encode())
+    return ctypes.CFUNCTYPE(None)(addr) if addr else None
 
 
 def _egl_context(moderngl, device_index: int):

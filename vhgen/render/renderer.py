@@ -454,6 +454,47 @@ class DepthLabelRenderer:
 
     def draw(self, draws: list[Draw]) -> View:
         """Draw ``draws`` into one cleared target and read it back (see :class:`View`)."""
+        self.submit(draws)
+        h, w = self.intr.height, self.intr.width
+        k = self._depth_components
+        out = np.empty((h, w, k) if k > 1 else (h, w), dtype=np.float32)
+        self.fbo.read_into(out, components=k, dtype="f4")
+        ids = np.empty((h, w), dtype=np.float32)
+        self.fbo.read_into(ids, components=1, attachment=1, dtype="f4")
+        self._check("after draw")
+        view = self.view_of(out, ids)
+        self.incidence = view.incidence
+        return view
+
+    @property
+    def view_floats(self) -> int:
+        """The float32 values a read-back of the targets holds (:meth:`read_view_into`)."""
+        return (self._depth_components + 1) * self.intr.width * self.intr.height
+
+    def read_view_into(self, buffer, offset: int) -> None:
+        """Queue the read-back of the targets into the GL ``buffer`` at byte ``offset``
+        (a pixel pack buffer: the GL copies when it gets there, nothing waits):
+        :attr:`view_floats` float32, the depth [and incidence] texels, then the ids.
+        :meth:`view_of` makes the :class:`View` of what lands there."""
+        n = self.intr.width * self.intr.height
+        k = self._depth_components
+        self.fbo.read_into(buffer, components=k, dtype="f4", write_offset=offset)
+        self.fbo.read_into(buffer, components=1, attachment=1, dtype="f4",
+                           write_offset=offset + 4 * k * n)
+
+    def view_of(self, out: np.ndarray, ids: np.ndarray) -> View:
+        """The :class:`View` of read-back targets: ``out`` the depth [and incidence]
+        texels (H, W[, 2]) float32, ``ids`` (H, W) float32."""
+        h, w = self.intr.height, self.intr.width
+        out = out.reshape((h, w, 2) if self._depth_components > 1 else (h, w))
+        if self.want_incidence:
+            return View(np.ascontiguousarray(out[..., 0]), ids.reshape(h, w).astype(np.uint32),
+                        np.ascontiguousarray(out[..., 1]))
+        return View(out, ids.reshape(h, w).astype(np.uint32), None)
+
+    def submit(self, draws: list[Draw]) -> None:
+        """Draw ``draws`` into one cleared target, without reading it back (the GL runs
+        it when it gets there; :meth:`draw` reads it, or a GL sensor reads it in place)."""
         import moderngl
 
         if self.program is None:
@@ -497,21 +538,6 @@ class DepthLabelRenderer:
                 d.mesh.vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
         if culling:
             ctx.disable(moderngl.CULL_FACE)
-        h, w = self.intr.height, self.intr.width
-        k = self._depth_components
-        out = np.empty((h, w, k) if k > 1 else (h, w), dtype=np.float32)
-        self.fbo.read_into(out, components=k, dtype="f4")
-        ids = np.empty((h, w), dtype=np.float32)
-        self.fbo.read_into(ids, components=1, attachment=1, dtype="f4")
-        self._check("after draw")
-        incidence = None
-        if self.want_incidence:
-            incidence = np.ascontiguousarray(out[..., 1])
-            self.incidence = incidence
-            depth = np.ascontiguousarray(out[..., 0])
-        else:
-            depth = out
-        return View(depth, ids.astype(np.uint32), incidence)
 
     def render(self, camera_bones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Draw the :meth:`set_mesh` mesh in one pose.

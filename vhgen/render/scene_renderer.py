@@ -80,6 +80,17 @@ def composite(view: View, real_depth: np.ndarray, real_ids: int) -> View:
                 incidence)
 
 
+def without_glass(view: View, no_return: tuple[int, ...]) -> tuple[View, bool]:
+    """``view`` with no depth where its class is one of ``no_return`` (window glass: the
+    pixel gets no measurement, nor what is behind it), and whether any pixel was."""
+    if not no_return:
+        return view, False
+    glass = np.isin(view.classes, no_return)
+    if not glass.any():
+        return view, False
+    return replace(view, depth=np.where(glass, np.float32(0), view.depth)), True
+
+
 class SceneRenderer:
     """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
     last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU) and the
@@ -111,6 +122,36 @@ class SceneRenderer:
                ) -> SceneViews:
         """The camera view and, when ``projector_baseline_m`` is given, the projector's
         depth of the same scene."""
+        draws = self._draws(desc)
+        w2c = desc.camera.world_to_camera
+        if desc.background is not None:
+            return SceneViews(self._over_background(desc, draws(w2c),
+                                                    projector_baseline_m), None)
+        cam = self.renderer.draw(draws(w2c))
+        in_target = True
+        if desc.no_return:  # window glass: the pixel gets no measurement (nor what is behind)
+            cam, glass = without_glass(cam, desc.no_return)
+            in_target = not glass
+        proj = None
+        if projector_baseline_m is not None:
+            proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
+            in_target = False
+        return SceneViews(cam, proj, in_target)
+
+    def submit(self, desc: FrameDescription) -> None:
+        """Draw the camera view of ``desc`` (no real background) without reading it back:
+        it stays in the renderer's target, window glass and all, for a GL sensor that
+        reads it there (``GLSensorModel.simulate_target(..., glass=desc.no_return)``)
+        and a read-back queued after it (:meth:`DepthLabelRenderer.read_view_into`;
+        :func:`without_glass` then gives what :meth:`render` gives)."""
+        if desc.background is not None:
+            raise RenderError("submit: a frame over a real background is composited on the "
+                              "CPU; use render()")
+        self.renderer.submit(self._draws(desc)(desc.camera.world_to_camera))
+
+    def _draws(self, desc: FrameDescription) -> Callable[[np.ndarray], list[Draw]]:
+        """The draws of ``desc`` seen from a world-to-view transform (its people's meshes
+        made resident, its static geometry written)."""
         meshes = self._resident([p.avatar_id for p in desc.people])
         people = list(zip(meshes, desc.people, strict=True))
         # all static geometry as one mesh, one draw: the same triangles in the same order
@@ -129,22 +170,7 @@ class SceneRenderer:
             return ([Draw(mesh, w2v @ p.bones, p.instance, PERSON) for mesh, p in people]
                     + [Draw(m, w2v) for m in static])
 
-        w2c = desc.camera.world_to_camera
-        if desc.background is not None:
-            return SceneViews(self._over_background(desc, draws(w2c),
-                                                    projector_baseline_m), None)
-        cam = self.renderer.draw(draws(w2c))
-        in_target = True
-        if desc.no_return:  # window glass: the pixel gets no measurement (nor what is behind)
-            glass = np.isin(cam.classes, desc.no_return)
-            if glass.any():
-                cam = replace(cam, depth=np.where(glass, np.float32(0), cam.depth))
-                in_target = False
-        proj = None
-        if projector_baseline_m is not None:
-            proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
-            in_target = False
-        return SceneViews(cam, proj, in_target)
+        return draws
 
     def _over_background(self, desc: FrameDescription, draws: list[Draw],
                          projector_baseline_m: float | None) -> View:

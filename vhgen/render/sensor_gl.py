@@ -285,7 +285,8 @@ class GLSensorModel:
             tex[name].use(unit)
         self._run(key, {"depth_tex": 0, "ids_tex": 1, "inc_tex": 2, "proj_tex": 3,
                         "want_ids": labels is not None,
-                        "inc_component": 0 if incidence is not None else -1})
+                        "inc_component": 0 if incidence is not None else -1,
+                        **_glass_bits(())})
         return self._read(labels.dtype if labels is not None else None)
 
     def simulate_target(self, renderer, rng: np.random.Generator | None, *,
@@ -297,6 +298,40 @@ class GLSensorModel:
         ``labels_dtype``). The caller makes sure the target still holds the camera view
         (:attr:`vhgen.render.scene_renderer.SceneViews.in_target`); a sensor that needs a
         projector view takes :meth:`simulate`."""
+        self._run_target(renderer, rng, ())
+        return self._read(np.dtype(labels_dtype))
+
+    @property
+    def output_words(self) -> int:
+        """The 32-bit words a frame's outputs take in a buffer (:meth:`queue_target`)."""
+        return 4 * self.width * self.height
+
+    def queue_target(self, renderer, rng: np.random.Generator | None, buffer, offset: int,
+                     glass: tuple[int, ...] = ()) -> None:
+        """:meth:`simulate_target` without waiting for it: the passes are queued and their
+        outputs copied, by the GL when it gets there, into the GL ``buffer`` at byte
+        ``offset`` (:attr:`output_words` words); :meth:`output_of` makes the frame's
+        :class:`SensorOutput` of them once read. ``glass``: the scene classes that return
+        nothing (window glass), taken out of the frame as the CPU does
+        (:func:`vhgen.render.scene_renderer.without_glass`) before the effects."""
+        self._run_target(renderer, rng, glass)
+        n4 = 4 * self.width * self.height
+        for i, src in enumerate((self.out, self.buffers["flags"], self.spare["val"],
+                                 self.buffers["ids"])):
+            self.ctx.copy_buffer(buffer, src, n4, write_offset=offset + i * n4)
+
+    def output_of(self, words: np.ndarray, labels_dtype=np.uint32) -> SensorOutput:
+        """The :class:`SensorOutput` of the ``output_words`` uint32 words that
+        :meth:`queue_target` copied (read back as one array)."""
+        h, w = self.height, self.width
+        n = h * w
+        words = words.reshape(4, n)
+        return self._output(words[0].reshape(h, w), words[1].reshape(h, w),
+                            words[2].view(np.float32).reshape(h, w), words[3].reshape(h, w),
+                            np.dtype(labels_dtype))
+
+    def _run_target(self, renderer, rng: np.random.Generator | None,
+                    glass: tuple[int, ...]) -> None:
         cfg = self.cfg
         if renderer.ctx is not self.ctx:
             raise RenderError("simulate_target: the renderer draws on another context")
@@ -313,8 +348,8 @@ class GLSensorModel:
         renderer.ids_tex.use(1)
         self._run(self._frame_key(rng),
                   {"depth_tex": 0, "ids_tex": 1, "inc_tex": 0, "want_ids": True,
-                   "inc_component": 1 if renderer.want_incidence else -1})
-        return self._read(np.dtype(labels_dtype))
+                   "inc_component": 1 if renderer.want_incidence else -1,
+                   **_glass_bits(glass)})
 
     def _frame_key(self, rng: np.random.Generator | None) -> tuple[int, int]:
         """Two words of the frame's generator (0, 0 for a sensor that draws nothing)."""
@@ -344,12 +379,18 @@ class GLSensorModel:
         out = np.frombuffer(self.out.read(), np.uint32).reshape(h, w)
         flags = np.frombuffer(self.buffers["flags"].read(), np.uint32).reshape(h, w)
         disp = np.frombuffer(self.spare["val"].read(), np.float32).reshape(h, w)
+        ids = None
+        if labels_dtype is not None:
+            ids = np.frombuffer(self.buffers["ids"].read(), np.uint32).reshape(h, w)
+        return self._output(out, flags, disp, ids, labels_dtype)
+
+    def _output(self, out: np.ndarray, flags: np.ndarray, disp: np.ndarray,
+                ids: np.ndarray | None, labels_dtype) -> SensorOutput:
         depth_mm = (out & 0xFFFF).astype(np.uint16)
         valid = depth_mm > 0
         raw = (out >> 16).astype(np.uint16) if self.cfg.encoding.raw11 else None
         lab = None
-        if labels_dtype is not None:
-            ids = np.frombuffer(self.buffers["ids"].read(), np.uint32).reshape(h, w)
+        if ids is not None and labels_dtype is not None:
             lab = ids.astype(labels_dtype)
         present = int(np.bitwise_or.reduce(flags, axis=None))  # one pass for every cause
         masks = {cause: (flags & np.uint32(2 << i)) != 0 for i, cause in enumerate(HOLE_CAUSES)
@@ -366,6 +407,16 @@ class GLSensorModel:
         for o in objs:
             o.release()
         self._programs = {}
+
+
+def _glass_bits(classes: tuple[int, ...]) -> dict[str, tuple[int, int, int, int]]:
+    """The load step's ``glass_a`` / ``glass_b`` uniforms: scene classes 0-255 as bits."""
+    words = [0] * 8
+    for c in classes:
+        if not 0 <= int(c) < 256:
+            raise ValueError(f"scene class {c} is not 0-255")
+        words[int(c) >> 5] |= 1 << (int(c) & 31)
+    return {"glass_a": tuple(words[:4]), "glass_b": tuple(words[4:])}  # type: ignore[dict-item]
 
 
 # --- the passes, one per effect (specs in vhgen.sensor.effects) -------------------------

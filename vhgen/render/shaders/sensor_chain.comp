@@ -18,6 +18,15 @@ uniform sampler2D ids_tex;     // .r packed ids as a float (exact below 2^24)
 uniform sampler2D inc_tex;     // the incidence in component inc_component
 uniform int inc_component;     // 0 or 1 (the renderer's RG target); -1: none (1)
 uniform bool want_ids;
+uniform uvec4 glass_a;         // the scene classes with no return (window glass), as bits:
+uniform uvec4 glass_b;         // classes 0-127 in glass_a, 128-255 in glass_b
+
+bool no_return(uint cls) {
+    uvec4 w = cls < 128u ? glass_a : glass_b;
+    uint i = (cls >> 5) & 3u;
+    uint word = i == 0u ? w.x : (i == 1u ? w.y : (i == 2u ? w.z : w.w));
+    return ((word >> (cls & 31u)) & 1u) != 0u;
+}
 // FINISH: the output encoding
 uniform float d_off;
 
@@ -30,11 +39,13 @@ void main() {
     float c;
 #if LOAD
     float z = texelFetch(depth_tex, q, 0).r;
-    bool hit = z > 0.0 && !isinf(z) && !isnan(z);
+    uint id = want_ids ? uint(texelFetch(ids_tex, q, 0).r) : 0u;
+    // glass: as if nothing were hit there (the ids keep the glass)
+    bool hit = z > 0.0 && !isinf(z) && !isnan(z) && !no_return((id >> 16) & 0xFFu);
     v = hit ? z : 0.0;
     f = hit ? VALID : cause_bit(NO_HIT);
     c = inc_component < 0 ? 1.0 : texelFetch(inc_tex, q, 0)[inc_component];
-    ids[p] = want_ids ? uint(texelFetch(ids_tex, q, 0).r) : 0u;
+    ids[p] = id;
     inc[p] = c;
 #else
     v = val[p];
