@@ -4,7 +4,7 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
         [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
-        [--layout-frames 1,16] [--gl-calls N]
+        [--layout-frames 1,16] [--batch-frames 0,4,16] [--gl-calls N]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -14,6 +14,9 @@ macro-target cache built), unreported. Per row:
 
 * wall: the whole job, start-up and merge included; fixed: what does not grow with the
   frames (``RunSummary.fixed_seconds``: wall minus the frames at the steady rate);
+* layout, batch: ``scene.layout_frames`` and ``render.batch_frames`` (frames a worker
+  with the GL sensor draws and senses before reading any back; 0 reads each back before
+  the next is drawn; with the CPU sensor it does not apply);
 * frames/s dispatch: frames over the dispatch (the workers set up, until the last shard
   returned), so start-up, merge and shutdown excluded, the last shards' tail included;
 * frames/s steady: workers x one worker's median frames/s over its shards
@@ -154,6 +157,7 @@ class Row:
     cpu: float | None
     renderers: list[str]
     layout_frames: int = 1
+    batch_frames: int = 0
 
 
 def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | None) -> Row:
@@ -171,7 +175,7 @@ def run_one(cfg: JobConfig, frames: int, workers: int, sampler: GpuSampler | Non
     cpu = sampler.cpu_busy(t_end - s.render_seconds, t_end) if sampler else None
     steady = ran / s.steady_seconds_per_frame if s.steady_seconds_per_frame else 0.0
     return Row(workers, ran, s.frames, s.seconds, s.fixed_seconds, s.render_seconds, steady,
-               gpu, cpu, s.renderers, cfg.scene.layout_frames)
+               gpu, cpu, s.renderers, cfg.scene.layout_frames, cfg.batch_frames)
 
 
 def load_config(args: argparse.Namespace) -> JobConfig:
@@ -196,8 +200,8 @@ def load_config(args: argparse.Namespace) -> JobConfig:
 
 def print_table(rows: list[Row], gpu_available: bool) -> None:
     """The rows as a table (one line per job)."""
-    print(f"{'workers':>7s} {'layout':>6s} {'frames':>6s} {'wall s':>7s} {'fixed s':>7s} "
-          f"{'dispatch s':>10s} "
+    print(f"{'workers':>7s} {'layout':>6s} {'batch':>5s} {'frames':>6s} {'wall s':>7s} "
+          f"{'fixed s':>7s} {'dispatch s':>10s} "
           f"{'frames/s dispatch':>17s} {'frames/s steady':>15s} {'GPU busy % mean/max':>19s} "
           f"{'CPU busy %':>10s}")
     for r in rows:
@@ -206,8 +210,8 @@ def print_table(rows: list[Row], gpu_available: bool) -> None:
         else:
             busy = "no samples" if gpu_available else "-"
         ran = f"{r.workers}" if r.ran == r.workers else f"{r.workers} ({r.ran} ran)"
-        print(f"{ran:>7s} {r.layout_frames:6d} {r.frames:6d} {r.wall:7.1f} {r.fixed:7.1f} "
-              f"{r.dispatch:10.2f} "
+        print(f"{ran:>7s} {r.layout_frames:6d} {r.batch_frames:5d} {r.frames:6d} "
+              f"{r.wall:7.1f} {r.fixed:7.1f} {r.dispatch:10.2f} "
               f"{r.frames / max(r.dispatch, 1e-9):17.1f} {r.steady_fps:15.1f} {busy:>19s} "
               f"{'-' if r.cpu is None else f'{r.cpu:.0f}':>10s}")
 
@@ -286,6 +290,16 @@ def _counts(text: str) -> list[int]:
     return counts
 
 
+def _batches(text: str) -> list[int]:
+    try:
+        sizes = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text}: comma-separated batch sizes") from None
+    if not sizes or min(sizes) < 0 or max(sizes) > 64:
+        raise argparse.ArgumentTypeError(f"{text}: batch sizes must be 0-64")
+    return sizes
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--config", default="cluttered_room",
@@ -310,6 +324,10 @@ def main() -> None:
     ap.add_argument("--layout-frames", type=_counts, default=None,
                     help="comma-separated scene.layout_frames values, each worker count run "
                          "with each, interleaved (e.g. 1,16; default: the config's)")
+    ap.add_argument("--batch-frames", type=_batches, default=None,
+                    help="comma-separated render.batch_frames values (with the GL sensor), "
+                         "each run with every worker count and layout, interleaved (e.g. "
+                         "0,4,16; default: the config's)")
     ap.add_argument("--gl-calls", type=int, metavar="N", default=0,
                     help="time one worker's GL calls over N frames instead (no job)")
     args = ap.parse_args()
@@ -326,14 +344,17 @@ def main() -> None:
         run_one(cfg, min(args.frames, cfg.frames_per_shard), 1, None)
     rows = []
     layouts = args.layout_frames or [cfg.scene.layout_frames]
+    batches = args.batch_frames or [cfg.batch_frames]
     with GpuSampler() as sampler:
         for _ in range(args.repeat):
             for w in args.workers:
                 for n in layouts:  # frames sharing a layout (docs/scenes.md)
-                    c = replace(cfg, scene=replace(cfg.scene, layout_frames=n))
-                    rows.append(run_one(c, args.frames, w, sampler))
-                    print(f"  {w} workers, layout_frames {n}: {rows[-1].wall:.1f} s",
-                          flush=True)
+                    for b in batches:
+                        c = replace(cfg, scene=replace(cfg.scene, layout_frames=n),
+                                    batch_frames=b)
+                        rows.append(run_one(c, args.frames, w, sampler))
+                        print(f"  {w} workers, layout_frames {n}, batch_frames {b}: "
+                              f"{rows[-1].wall:.1f} s", flush=True)
     renderers = sorted({r for row in rows for r in row.renderers})
     print(f"GL renderer: {', '.join(renderers)}")
     print_table(rows, sampler_probe)
