@@ -10,7 +10,8 @@ through the environment variable :data:`ENV` (JSON), read when a worker is const
 - ``setup_error``: a message; the set-up fails with a RenderError;
 - ``crash``: shards; a plain bug (RuntimeError) on those shards;
 - ``gl_lost_once``: shards; the GL context fails (``moderngl.Error``) at the second frame
-  the first time one of them is attempted, as a GPU reset or a lost device would.
+  (at the second batch where the worker sends frames in batches, the first one still in
+  flight) the first time one of them is attempted, as a GPU reset or a lost device would.
 
 With ``die_once``, faults of a replacement worker (one setting up after a ``die_once``
 death): ``die_in_setup`` (n) kills the process in its set-up the first n times;
@@ -90,15 +91,18 @@ class FaultyWorker(FrameWorker):
                 marker.touch()
                 import moderngl
 
-                real_render, calls = self.gen.render, []
+                # frames one by one: at the second frame; in batches (the GL sensor's
+                # render.batch_frames): at the second batch, the first still in flight
+                name = "_submit" if self.gen.batch > 0 else "render"
+                real, calls = getattr(self.gen, name), []
 
-                def render(desc: Any) -> Any:
-                    calls.append(desc)
+                def failing_step(*args: Any) -> Any:
+                    calls.append(args)
                     if len(calls) == 2:
                         raise moderngl.Error("GL_CONTEXT_LOST (injected)")
-                    return real_render(desc)
+                    return real(*args)
 
-                self.gen.render = render
+                setattr(self.gen, name, failing_step)
         if shard in f.get("crash", ()):
             raise RuntimeError(f"injected bug on shard {shard}")
         if "write_error" in f and shard in f["write_error"][1]:

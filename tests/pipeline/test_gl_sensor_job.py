@@ -133,3 +133,32 @@ def test_a_bad_batch_size_is_one_line_naming_the_field(tmp_path, value):
     with pytest.raises(ConfigError, match="render.batch_frames") as e:
         JobConfig.load(p)
     assert "\n" not in str(e.value) and str(p) in str(e.value)
+
+
+@pytest.mark.gl
+def test_a_context_lost_with_batches_in_flight_is_a_dead_worker(tmp_path):
+    """The GL context fails while a batch is in flight (injected at a shard's second
+    batch): the worker exits, the shard is redone whole, and the store is the same bytes
+    as a run without the fault, every frame once."""
+    import pyarrow.parquet as pq
+
+    from tests.pipeline.faulty_worker import run_faulty
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.driver import run_job
+
+    p = tmp_path / "b.yaml"
+    p.write_text(BATCH_JOB.format(per_shard=4, batch=2))
+    cfg = JobConfig.load(p)
+    run_job(cfg, tmp_path / "plain.zarr", max_frames=8, executor="local")
+    summary = run_faulty(cfg, tmp_path / "lost.zarr", {"gl_lost_once": {1}},
+                         max_frames=8, executor="local")
+    assert summary.frames == 8 and summary.retries == 1
+
+    def arrays(store):
+        return {str(f.relative_to(store)): f.read_bytes() for f in sorted(store.rglob("*"))
+                if f.is_file() and {"depth", "labels", "instances", "classes"} & set(f.parts)}
+
+    a, b = arrays(tmp_path / "plain.zarr"), arrays(tmp_path / "lost.zarr")
+    assert a and a == b
+    frames = pq.read_table(tmp_path / "lost.zarr" / "manifest.parquet").column("frame")
+    assert frames.to_pylist() == list(range(8))
