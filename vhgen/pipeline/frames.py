@@ -114,6 +114,7 @@ class FrameGenerator:
             self.gl_sensor is not None and not cfg.scene.backgrounds
             and "projector_depth" not in cfg.sensor.needs) else 0
         self._staging: list[Any] = []
+        self._host: np.ndarray | None = None  # one frame's slot, read back
 
     def describe(self, frame: int) -> FrameDescription:
         return self.describer.describe(frame)
@@ -144,14 +145,14 @@ class FrameGenerator:
         """Describe and render frame ``frame`` of the plan."""
         return self.render(self.describe(frame))
 
-    def _person(self, desc: FrameDescription, person: Person, view: View) -> PersonRecord:
+    def _person(self, desc: FrameDescription, person: Person, depth: np.ndarray,
+                instances: np.ndarray) -> PersonRecord:
         """Per-person truth: provenance, placement, 3D/2D joints, visibility against the
-        clean rendered view (before the sensor)."""
+        clean rendered view (before the sensor: its ``depth`` and ``instances``)."""
         w2c = desc.camera.world_to_camera
         joints_cam = person.joints @ w2c[:3, :3].T + w2c[:3, 3]
         intr = self.cfg.sensor.intrinsics
-        visible = joint_visibility(intr, joints_cam, person.instance, view.depth,
-                                   view.instances)
+        visible = joint_visibility(intr, joints_cam, person.instance, depth, instances)
         motion_file, _, source_frame = self.job.poses.source(person.pose_index)
         return PersonRecord(
             instance=person.instance, avatar_id=person.avatar_id,
@@ -165,8 +166,8 @@ class FrameGenerator:
             footprint=None if person.footprint is None else
             [person.footprint.x, person.footprint.z, person.footprint.r])
 
-    def _record(self, desc: FrameDescription, view: View, holes: dict, valid_pixels: int,
-                labels: np.ndarray) -> FrameRecord:
+    def _record(self, desc: FrameDescription, depth: np.ndarray, instances: np.ndarray,
+                holes: dict, valid_pixels: int, labels: np.ndarray) -> FrameRecord:
         person = desc.people[0]
         body = self.describer.body(person.avatar_id)
         w2c = desc.camera.world_to_camera
@@ -202,7 +203,7 @@ class FrameGenerator:
             sensor=self._sensor_json, holes=json.dumps(holes, sort_keys=True),
             valid_pixels=valid_pixels, body_pixels=int((labels > 0).sum()),
             num_people=len(desc.people), scene=json.dumps(scene, sort_keys=True),
-            people=[self._person(desc, p, view) for p in desc.people],
+            people=[self._person(desc, p, depth, instances) for p in desc.people],
             camera_pitch_deg=pitch, camera_roll_deg=roll)
 
     def frames(self, start: int, stop: int) -> Iterator[tuple[FrameDescription, FrameOutput]]:
@@ -245,7 +246,8 @@ class FrameGenerator:
         if buf is None or buf.size < slot * len(descs):
             if buf is not None:
                 buf.release()
-            buf = self._staging[which] = self.ctx.buffer(reserve=slot * self.batch)
+            buf = self._staging[which] = self.ctx.buffer(
+                reserve=slot * max(self.batch, len(descs)))
         view_bytes = 4 * self.renderer.view_floats
         for j, desc in enumerate(descs):
             self.scene.submit(desc)
@@ -256,29 +258,37 @@ class FrameGenerator:
     def _collect(self, which: int, descs: list[FrameDescription]
                  ) -> Iterator[tuple[FrameDescription, FrameOutput]]:
         """Read the frames of staging buffer ``which`` back (waiting for the GPU where it
-        is not done) and make their outputs as :meth:`render` does."""
-        from vhgen.render.scene_renderer import without_glass
+        is not done) and make their outputs as :meth:`render` does, decoded in one pass
+        (:func:`vhgen.render.frame_words.decode`)."""
+        from vhgen.render.frame_words import decode
 
-        gl = self.gl_sensor
-        assert gl is not None
         buf = self._staging[which]
         slot = self._slot_bytes()
-        nv = self.renderer.view_floats
-        n = self.cfg.sensor.intrinsics.width * self.cfg.sensor.intrinsics.height
+        intr = self.cfg.sensor.intrinsics
+        h, w, n = intr.height, intr.width, intr.width * intr.height
+        k = self.renderer.view_floats // n - 1  # depth [and incidence] texels
+        if self._host is None or self._host.nbytes != slot:
+            self._host = np.empty(slot // 4, np.uint32)
+        host = self._host
+        floats = host.view(np.float32)
+        depth = floats[:k * n].reshape(h, w, k)[..., 0]  # the view's, before the sensor
         for j, desc in enumerate(descs):
-            data = buf.read(size=slot, offset=j * slot)
-            floats = np.frombuffer(data, np.float32, count=nv)
-            view = self.renderer.view_of(floats[:nv - n], floats[nv - n:])
-            view, _ = without_glass(view, desc.no_return)
-            out = gl.output_of(np.frombuffer(data, np.uint32, offset=4 * nv),
-                               labels_dtype=view.ids.dtype)
-            yield desc, self._output(desc, view, out)
+            buf.read_into(host, size=slot, offset=j * slot)
+            d = decode(host[(k + 1) * n:], floats[k * n:(k + 1) * n], h, w,
+                       self.cfg.sensor.encoding.raw11)
+            # window glass has no depth in the view :meth:`render` records, but as no
+            # person's pixel it hides their joints with or without it: the same record
+            record = self._record(desc, depth, d.view_instances, d.holes, d.valid_pixels,
+                                  d.labels)
+            yield desc, FrameOutput(d.depth_mm, d.labels, d.instances, d.classes, d.raw11,
+                                    record)
 
     def _output(self, desc: FrameDescription, view: View, out: SensorOutput) -> FrameOutput:
         labels, instances, classes = unpack_ids(out.labels if out.labels is not None
                                                 else view.ids)
         return FrameOutput(out.depth_mm, labels, instances, classes, out.raw11,
-                           self._record(desc, view, out.holes, int(out.valid.sum()), labels))
+                           self._record(desc, view.depth, view.instances, out.holes,
+                                        int(out.valid.sum()), labels))
 
     def run_task(self, store: str, shard: int, start: int, stop: int) -> ShardResult:
         """Render frames [start, stop), write shard ``shard`` and its manifest part."""

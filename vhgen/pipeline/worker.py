@@ -58,6 +58,9 @@ class FrameWorker:
                     np.full((h, w), 2.0, np.float32), np.random.default_rng(0),
                     labels=np.ones((h, w), np.uint32), incidence=np.ones((h, w), np.float32),
                     projector_depth=np.full((h, w), 2.0, np.float32))
+            else:  # the decoding of its batches' frames
+                from vhgen.render.frame_words import warm as warm_words
+                warm_words()
             # and placement's (people and props kept in view; clutter)
             if not cfg.scene.is_person_only:
                 from vhgen.scene.placement_kernels import warm as warm_placement

@@ -311,9 +311,10 @@ class GLSensorModel:
         """:meth:`simulate_target` without waiting for it: the passes are queued and their
         outputs copied, by the GL when it gets there, into the GL ``buffer`` at byte
         ``offset`` (:attr:`output_words` words); :meth:`output_of` makes the frame's
-        :class:`SensorOutput` of them once read. ``glass``: the scene classes that return
-        nothing (window glass), taken out of the frame as the CPU does
-        (:func:`vhgen.render.scene_renderer.without_glass`) before the effects."""
+        :class:`SensorOutput` of them once read (and
+        :func:`vhgen.render.frame_words.decode` what a job's frame keeps). ``glass``: the
+        scene classes that return nothing (window glass), taken out of the frame as the
+        CPU does (:func:`vhgen.render.scene_renderer.without_glass`) before the effects."""
         self._run_target(renderer, rng, glass)
         n4 = 4 * self.width * self.height
         for i, src in enumerate((self.out, self.buffers["flags"], self.spare["val"],
@@ -326,9 +327,9 @@ class GLSensorModel:
         h, w = self.height, self.width
         n = h * w
         words = words.reshape(4, n)
-        return self._output(words[0].reshape(h, w), words[1].reshape(h, w),
-                            words[2].view(np.float32).reshape(h, w), words[3].reshape(h, w),
-                            np.dtype(labels_dtype))
+        return sensor_output(words[0].reshape(h, w), words[1].reshape(h, w),
+                             words[2].view(np.float32).reshape(h, w), words[3].reshape(h, w),
+                             np.dtype(labels_dtype), self.cfg.encoding.raw11)
 
     def _run_target(self, renderer, rng: np.random.Generator | None,
                     glass: tuple[int, ...]) -> None:
@@ -382,21 +383,7 @@ class GLSensorModel:
         ids = None
         if labels_dtype is not None:
             ids = np.frombuffer(self.buffers["ids"].read(), np.uint32).reshape(h, w)
-        return self._output(out, flags, disp, ids, labels_dtype)
-
-    def _output(self, out: np.ndarray, flags: np.ndarray, disp: np.ndarray,
-                ids: np.ndarray | None, labels_dtype) -> SensorOutput:
-        depth_mm = (out & 0xFFFF).astype(np.uint16)
-        valid = depth_mm > 0
-        raw = (out >> 16).astype(np.uint16) if self.cfg.encoding.raw11 else None
-        lab = None
-        if ids is not None and labels_dtype is not None:
-            lab = ids.astype(labels_dtype)
-        present = int(np.bitwise_or.reduce(flags, axis=None))  # one pass for every cause
-        masks = {cause: (flags & np.uint32(2 << i)) != 0 for i, cause in enumerate(HOLE_CAUSES)
-                 if cause == "no_hit" or present & (2 << i)}
-        holes = {c: int(np.count_nonzero(m)) for c, m in masks.items()}
-        return SensorOutput(depth_mm, valid, lab, raw, disp.astype(np.float64), holes, masks)
+        return sensor_output(out, flags, disp, ids, labels_dtype, self.cfg.encoding.raw11)
 
     def release(self) -> None:
         """Release the programs, buffers and textures."""
@@ -407,6 +394,27 @@ class GLSensorModel:
         for o in objs:
             o.release()
         self._programs = {}
+
+
+def sensor_output(out: np.ndarray, flags: np.ndarray, disp: np.ndarray,
+                  ids: np.ndarray | None, labels_dtype, raw11: bool) -> SensorOutput:
+    """The :class:`SensorOutput` of the passes' output arrays (H, W) each: ``out`` uint32
+    (millimetres in the low half, the raw value in the high half), ``flags`` uint32 (bit
+    0 valid, bit c + 1 hole cause c), ``disp`` float32, ``ids`` uint32 packed ids (or
+    None) returned as ``labels_dtype``; ``raw11``: whether the encoding keeps the raw
+    value. (:func:`vhgen.render.frame_words.decode` makes what a frame keeps of them in
+    one pass.)"""
+    depth_mm = (out & 0xFFFF).astype(np.uint16)
+    valid = depth_mm > 0
+    raw = (out >> 16).astype(np.uint16) if raw11 else None
+    lab = None
+    if ids is not None and labels_dtype is not None:
+        lab = ids.astype(labels_dtype)
+    present = int(np.bitwise_or.reduce(flags, axis=None))  # one pass for every cause
+    masks = {cause: (flags & np.uint32(2 << i)) != 0 for i, cause in enumerate(HOLE_CAUSES)
+             if cause == "no_hit" or present & (2 << i)}
+    holes = {c: int(np.count_nonzero(m)) for c, m in masks.items()}
+    return SensorOutput(depth_mm, valid, lab, raw, disp.astype(np.float64), holes, masks)
 
 
 def _glass_bits(classes: tuple[int, ...]) -> dict[str, tuple[int, int, int, int]]:
