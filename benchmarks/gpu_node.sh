@@ -1,6 +1,6 @@
 #!/bin/bash
-# Issue 28's measurements on a GPU node, in one run of about 6 minutes (an H200 and 16
-# cores: four 4,800-frame jobs at ~300 frames/s, their start-up, the description timing):
+# Issue 28's measurements on a GPU node, in one run of about 7 minutes (an H200 and 16
+# cores: six 4,800-frame jobs at ~300 frames/s, their start-up, the description timing):
 #
 #   bash benchmarks/gpu_node.sh [MOTIONS]          # in the project root, vhgen importable
 #   bash .gpu/run.sh bash benchmarks/gpu_node.sh   # a node without network (gpu_bundle.sh)
@@ -11,7 +11,7 @@
 # its NumPy references (bench_placement.py: the node's CPU), then the cluttered_room job
 # (CMU corpus, clothed people, clutter, openni_525 with sensor.backend gl) with
 # scene.layout_frames 1 and 16, each with render.batch_frames 0 (every frame read back
-# before the next is drawn) and 4 (batches of 4, two in flight) (bench_gpu.py: frames/s
+# before the next is drawn), 1 and 4 (batches, two in flight) (bench_gpu.py: frames/s
 # over the dispatch and steady, GPU and CPU busy). Put the tables and this command in
 # docs/performance.md.
 set -u
@@ -25,4 +25,4 @@ nproc
 "$PY" benchmarks/bench_placement.py --motions "$M" --frames 128 --repeat 3
 "$PY" benchmarks/bench_gpu.py --config cluttered_room --backend "$B" --sensor-backend gl \
     --motions "$M" --frame-step 4 --workers "$W" --frames "$F" --layout-frames 1,16 \
-    --batch-frames 0,4
+    --batch-frames 0,1,4
