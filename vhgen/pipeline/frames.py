@@ -266,16 +266,14 @@ class FrameGenerator:
         slot = self._slot_bytes()
         intr = self.cfg.sensor.intrinsics
         h, w, n = intr.height, intr.width, intr.width * intr.height
-        k = self.renderer.view_floats // n - 1  # depth [and incidence] texels
         if self._host is None or self._host.nbytes != slot:
             self._host = np.empty(slot // 4, np.uint32)
         host = self._host
         floats = host.view(np.float32)
-        depth = floats[:k * n].reshape(h, w, k)[..., 0]  # the view's, before the sensor
+        depth = floats[:n].reshape(h, w)  # the view's, before the sensor
         for j, desc in enumerate(descs):
             buf.read_into(host, size=slot, offset=j * slot)
-            d = decode(host[(k + 1) * n:], floats[k * n:(k + 1) * n], h, w,
-                       self.cfg.sensor.encoding.raw11)
+            d = decode(host[2 * n:], floats[n:2 * n], h, w, self.cfg.sensor.encoding.raw11)
             # window glass has no depth in the view :meth:`render` records, but as no
             # person's pixel it hides their joints with or without it: the same record
             record = self._record(desc, depth, d.view_instances, d.holes, d.valid_pixels,

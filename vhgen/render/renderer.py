@@ -469,18 +469,17 @@ class DepthLabelRenderer:
     @property
     def view_floats(self) -> int:
         """The float32 values a read-back of the targets holds (:meth:`read_view_into`)."""
-        return (self._depth_components + 1) * self.intr.width * self.intr.height
+        return 2 * self.intr.width * self.intr.height
 
     def read_view_into(self, buffer, offset: int) -> None:
         """Queue the read-back of the targets into the GL ``buffer`` at byte ``offset``
         (a pixel pack buffer: the GL copies when it gets there, nothing waits):
-        :attr:`view_floats` float32, the depth [and incidence] texels, then the ids.
-        :meth:`view_of` makes the :class:`View` of what lands there."""
+        :attr:`view_floats` float32, the depth texels (without the incidence), then the
+        packed ids."""
         n = self.intr.width * self.intr.height
-        k = self._depth_components
-        self.fbo.read_into(buffer, components=k, dtype="f4", write_offset=offset)
+        self.fbo.read_into(buffer, components=1, dtype="f4", write_offset=offset)
         self.fbo.read_into(buffer, components=1, attachment=1, dtype="f4",
-                           write_offset=offset + 4 * k * n)
+                           write_offset=offset + 4 * n)
 
     def view_of(self, out: np.ndarray, ids: np.ndarray) -> View:
         """The :class:`View` of read-back targets: ``out`` the depth [and incidence]
