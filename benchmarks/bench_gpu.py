@@ -280,24 +280,26 @@ def gl_calls(cfg: JobConfig, frames: int) -> None:
     print(f"{1e3 * sum(spent.values()) / frames:8.3f} {'':11s}  every GL call")
 
 
-def _counts(text: str) -> list[int]:
+def _ints(text: str, what: str, lo: int, hi: int) -> list[int]:
     try:
-        counts = [int(v) for v in text.split(",")]
+        values = [int(v) for v in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text}: comma-separated worker counts") from None
-    if not counts or min(counts) < 1:
-        raise argparse.ArgumentTypeError(f"{text}: worker counts must be >= 1")
-    return counts
+        raise argparse.ArgumentTypeError(f"{text}: comma-separated {what}") from None
+    if not values or min(values) < lo or max(values) > hi:
+        raise argparse.ArgumentTypeError(f"{text}: {what} must be {lo}-{hi}")
+    return values
+
+
+def _counts(text: str) -> list[int]:
+    return _ints(text, "worker counts", 1, 4096)
+
+
+def _layouts(text: str) -> list[int]:
+    return _ints(text, "layout_frames values", 1, 100000)
 
 
 def _batches(text: str) -> list[int]:
-    try:
-        sizes = [int(v) for v in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text}: comma-separated batch sizes") from None
-    if not sizes or min(sizes) < 0 or max(sizes) > 64:
-        raise argparse.ArgumentTypeError(f"{text}: batch sizes must be 0-64")
-    return sizes
+    return _ints(text, "batch sizes", 0, 64)
 
 
 def main() -> None:
@@ -321,7 +323,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1,
                     help="runs of every worker count, interleaved")
     ap.add_argument("--no-warmup", action="store_true", help="skip the warm-up job")
-    ap.add_argument("--layout-frames", type=_counts, default=None,
+    ap.add_argument("--layout-frames", type=_layouts, default=None,
                     help="comma-separated scene.layout_frames values, each worker count run "
                          "with each, interleaved (e.g. 1,16; default: the config's)")
     ap.add_argument("--batch-frames", type=_batches, default=None,

@@ -113,7 +113,7 @@ class FrameGenerator:
         self.batch = cfg.batch_frames if (
             self.gl_sensor is not None and not cfg.scene.backgrounds
             and "projector_depth" not in cfg.sensor.needs) else 0
-        self._staging: list[Any] = []
+        self._staging: list[Any] = [None, None]  # the two batches in flight
         self._host: np.ndarray | None = None  # one frame's slot, read back
 
     def describe(self, frame: int) -> FrameDescription:
@@ -240,8 +240,6 @@ class FrameGenerator:
         gl = self.gl_sensor
         assert gl is not None
         slot = self._slot_bytes()
-        while len(self._staging) <= which:
-            self._staging.append(None)
         buf = self._staging[which]
         if buf is None or buf.size < slot * len(descs):
             if buf is not None:
@@ -321,7 +319,7 @@ class FrameGenerator:
         for buf in self._staging:
             if buf is not None:
                 buf.release()
-        self._staging = []
+        self._staging = [None, None]
         self.scene.release()
         self.renderer.release()
         release = getattr(self.sensor, "release", None)

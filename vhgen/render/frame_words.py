@@ -3,13 +3,14 @@
 A worker that sends frames in batches (:meth:`vhgen.pipeline.frames.FrameGenerator.frames`)
 reads back, per frame, the sensor's output words (:meth:`GLSensorModel.queue_target`: the
 encoded depth and raw value, the flags, the disparity, the packed ids) after the
-renderer's targets. :meth:`GLSensorModel.output_of` makes the sensor's full
-:class:`~vhgen.sensor.simulator.SensorOutput` of them (every hole mask, the disparity as
-float64) and the frame step then unpacks the ids: some fifteen passes over the image.
+renderer's targets. :func:`vhgen.render.sensor_gl.sensor_output` makes the sensor's full
+:class:`~vhgen.sensor.simulator.SensorOutput` of such words (every hole mask, the
+disparity as float64), which a frame then unpacks: some fifteen passes over the image.
 :func:`decode` makes what a frame keeps (depth, raw, labels, instances, classes, the
 count of each hole cause and of valid pixels, and the instances of the rendered view for
 the joints' visibility) in one, with the same values: the batch tests compare the stores
-of both ways, :mod:`tests.render.test_frame_words` the two on made-up words.
+of frames one by one and in batches, :mod:`tests.render.test_frame_words` the two
+decodings on made-up words.
 """
 
 from __future__ import annotations

@@ -462,9 +462,14 @@ class DepthLabelRenderer:
         ids = np.empty((h, w), dtype=np.float32)
         self.fbo.read_into(ids, components=1, attachment=1, dtype="f4")
         self._check("after draw")
-        view = self.view_of(out, ids)
-        self.incidence = view.incidence
-        return view
+        incidence = None
+        if self.want_incidence:
+            incidence = np.ascontiguousarray(out[..., 1])
+            self.incidence = incidence
+            depth = np.ascontiguousarray(out[..., 0])
+        else:
+            depth = out
+        return View(depth, ids.astype(np.uint32), incidence)
 
     @property
     def view_floats(self) -> int:
@@ -480,16 +485,6 @@ class DepthLabelRenderer:
         self.fbo.read_into(buffer, components=1, dtype="f4", write_offset=offset)
         self.fbo.read_into(buffer, components=1, attachment=1, dtype="f4",
                            write_offset=offset + 4 * n)
-
-    def view_of(self, out: np.ndarray, ids: np.ndarray) -> View:
-        """The :class:`View` of read-back targets: ``out`` the depth [and incidence]
-        texels (H, W[, 2]) float32, ``ids`` (H, W) float32."""
-        h, w = self.intr.height, self.intr.width
-        out = out.reshape((h, w, 2) if self._depth_components > 1 else (h, w))
-        if self.want_incidence:
-            return View(np.ascontiguousarray(out[..., 0]), ids.reshape(h, w).astype(np.uint32),
-                        np.ascontiguousarray(out[..., 1]))
-        return View(out, ids.reshape(h, w).astype(np.uint32), None)
 
     def submit(self, draws: list[Draw]) -> None:
         """Draw ``draws`` into one cleared target, without reading it back (the GL runs

@@ -80,17 +80,6 @@ def composite(view: View, real_depth: np.ndarray, real_ids: int) -> View:
                 incidence)
 
 
-def without_glass(view: View, no_return: tuple[int, ...]) -> tuple[View, bool]:
-    """``view`` with no depth where its class is one of ``no_return`` (window glass: the
-    pixel gets no measurement, nor what is behind it), and whether any pixel was."""
-    if not no_return:
-        return view, False
-    glass = np.isin(view.classes, no_return)
-    if not glass.any():
-        return view, False
-    return replace(view, depth=np.where(glass, np.float32(0), view.depth)), True
-
-
 class SceneRenderer:
     """Draws :class:`FrameDescription` s with one :class:`DepthLabelRenderer`; keeps the
     last few avatars' meshes on the GPU (``body_of`` builds a body on the CPU) and the
@@ -130,8 +119,10 @@ class SceneRenderer:
         cam = self.renderer.draw(draws(w2c))
         in_target = True
         if desc.no_return:  # window glass: the pixel gets no measurement (nor what is behind)
-            cam, glass = without_glass(cam, desc.no_return)
-            in_target = not glass
+            glass = np.isin(cam.classes, desc.no_return)
+            if glass.any():
+                cam = replace(cam, depth=np.where(glass, np.float32(0), cam.depth))
+                in_target = False
         proj = None
         if projector_baseline_m is not None:
             proj = self.renderer.draw(draws(world_to_projector(w2c, projector_baseline_m))).depth
@@ -141,9 +132,8 @@ class SceneRenderer:
     def submit(self, desc: FrameDescription) -> None:
         """Draw the camera view of ``desc`` (no real background) without reading it back:
         it stays in the renderer's target, window glass and all, for a GL sensor that
-        reads it there (``GLSensorModel.simulate_target(..., glass=desc.no_return)``)
-        and a read-back queued after it (:meth:`DepthLabelRenderer.read_view_into`;
-        :func:`without_glass` then gives what :meth:`render` gives)."""
+        reads it there (``GLSensorModel.queue_target(..., glass=desc.no_return)``) and a
+        read-back queued after it (:meth:`DepthLabelRenderer.read_view_into`)."""
         if desc.background is not None:
             raise RenderError("submit: a frame over a real background is composited on the "
                               "CPU; use render()")

@@ -310,26 +310,17 @@ class GLSensorModel:
                      glass: tuple[int, ...] = ()) -> None:
         """:meth:`simulate_target` without waiting for it: the passes are queued and their
         outputs copied, by the GL when it gets there, into the GL ``buffer`` at byte
-        ``offset`` (:attr:`output_words` words); :meth:`output_of` makes the frame's
-        :class:`SensorOutput` of them once read (and
-        :func:`vhgen.render.frame_words.decode` what a job's frame keeps). ``glass``: the
-        scene classes that return nothing (window glass), taken out of the frame as the
-        CPU does (:func:`vhgen.render.scene_renderer.without_glass`) before the effects."""
+        ``offset`` (:attr:`output_words` words: the encoded depth and raw value, the
+        flags, the disparity, the packed ids; :func:`sensor_output` or
+        :func:`vhgen.render.frame_words.decode` read them). ``glass``: the scene classes
+        that return nothing (window glass), taken out of the frame before the effects, as
+        :meth:`vhgen.render.scene_renderer.SceneRenderer.render` takes them out of the
+        read-back."""
         self._run_target(renderer, rng, glass)
         n4 = 4 * self.width * self.height
         for i, src in enumerate((self.out, self.buffers["flags"], self.spare["val"],
                                  self.buffers["ids"])):
             self.ctx.copy_buffer(buffer, src, n4, write_offset=offset + i * n4)
-
-    def output_of(self, words: np.ndarray, labels_dtype=np.uint32) -> SensorOutput:
-        """The :class:`SensorOutput` of the ``output_words`` uint32 words that
-        :meth:`queue_target` copied (read back as one array)."""
-        h, w = self.height, self.width
-        n = h * w
-        words = words.reshape(4, n)
-        return sensor_output(words[0].reshape(h, w), words[1].reshape(h, w),
-                             words[2].view(np.float32).reshape(h, w), words[3].reshape(h, w),
-                             np.dtype(labels_dtype), self.cfg.encoding.raw11)
 
     def _run_target(self, renderer, rng: np.random.Generator | None,
                     glass: tuple[int, ...]) -> None:
