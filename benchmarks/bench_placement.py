@@ -32,8 +32,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 
 def _reference_visibility() -> Callable[..., bool]:
     """placement.all_visible as the NumPy reference computes it."""
