@@ -162,3 +162,53 @@ def test_a_context_lost_with_batches_in_flight_is_a_dead_worker(tmp_path):
     assert a and a == b
     frames = pq.read_table(tmp_path / "lost.zarr" / "manifest.parquet").column("frame")
     assert frames.to_pylist() == list(range(8))
+
+
+@pytest.mark.gl
+def test_a_batch_is_queued_without_waiting_for_the_gpu(tmp_path, monkeypatch):
+    """Drawing and sensing a batch calls nothing that waits for the GPU (a buffer mapped
+    or read, a target read back other than into a pixel buffer): moderngl's Buffer.clear
+    maps the buffer, so one a frame in the speckle pass made the CPU wait for the frames
+    in flight on a GPU node (3 ms a frame on an H200), where llvmpipe hides it. Only
+    collecting a batch reads back."""
+    import moderngl
+
+    from vhgen.job_config import JobConfig
+    from vhgen.pipeline.frames import FrameGenerator
+    from vhgen.pipeline.job import prepare_job
+
+    p = tmp_path / "b.yaml"
+    p.write_text(BATCH_JOB.format(per_shard=4, batch=3))
+    gen = FrameGenerator(prepare_job(JobConfig.load(p)))
+    waits: list[str] = []
+    submit = gen._submit
+
+    def watched(*a, **k):
+        waits.append("submit")
+        try:
+            return submit(*a, **k)
+        finally:
+            waits.append("done")
+
+    def waiting(cls, name):
+        original = getattr(cls, name)
+
+        def call(self, *a, **k):
+            into_buffer = name == "read_into" and isinstance(a[0], moderngl.Buffer)
+            if waits and waits[-1] == "submit" and not into_buffer:  # a PBO: no wait
+                waits.append(f"{cls.__name__}.{name}")
+            return original(self, *a, **k)
+        monkeypatch.setattr(cls, name, call)
+
+    for cls, names in ((moderngl.Buffer, ("clear", "read", "read_into", "read_chunks")),
+                       (moderngl.Framebuffer, ("read", "read_into")),
+                       (moderngl.Texture, ("read", "read_into"))):
+        for name in names:
+            waiting(cls, name)
+    monkeypatch.setattr(gen, "_submit", watched)
+    try:
+        got = list(gen.frames(0, 7))
+    finally:
+        gen.close()
+    assert len(got) == 7 and waits.count("submit") == 3
+    assert [w for w in waits if w not in ("submit", "done")] == []

@@ -121,6 +121,10 @@ class GLSensorModel:
             self.buffers[ch] = ctx.buffer(reserve=4 * n)
             self.spare[ch] = ctx.buffer(reserve=4 * n)
         self.aux = [ctx.buffer(reserve=4 * n) for _ in range(4)]
+        # zeros copied on the GPU where a pass needs a cleared buffer: moderngl's
+        # Buffer.clear maps the buffer, which waits for every queued use of it (the
+        # frames in flight), so the CPU and the GPU would take turns again
+        self.zeros = ctx.buffer(bytes(4 * n))
         self.counts = ctx.buffer(reserve=4 * 8)
         self.out = ctx.buffer(reserve=4 * n)
         size = (self.width, self.height)
@@ -380,7 +384,7 @@ class GLSensorModel:
         """Release the programs, buffers and textures."""
         _park(self.ctx)
         objs = [*self._programs.values(), *self.buffers.values(), *self.spare.values(),
-                *self.aux, self.counts, self.out, *self.textures.values()]
+                *self.aux, self.zeros, self.counts, self.out, *self.textures.values()]
         objs += [b for b in (self.pattern, self.source) if b is not None]
         for o in objs:
             o.release()
@@ -580,7 +584,7 @@ class SpeckleFilterPass(GLPass[SpeckleFilter], spec=SpeckleFilter):
         m = self.model
         m.aux[0].bind_to_storage_buffer(8)
         m.aux[1].bind_to_storage_buffer(9)
-        m.aux[1].clear()
+        m.ctx.copy_buffer(m.aux[1], m.zeros)  # cleared on the GPU, no wait (see zeros)
         m.dispatch(self.progs["ROWS"], rows=True)
         for step in ("MERGE", "COUNT"):
             m.dispatch(self.progs[step])
