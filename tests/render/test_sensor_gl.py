@@ -31,10 +31,10 @@ def _cfg(effects: str, tmp_path, name="t", width=W, height=H, backend=None) -> S
     return SensorConfig.load(p)
 
 
-def _both(ctx, cfg, depth, seed=0, **kw):
+def _both(ctx, cfg, depth, seed=0, row_threads=None, **kw):
     from vhgen.render.sensor_gl import GLSensorModel
 
-    g = GLSensorModel(ctx, cfg)
+    g = GLSensorModel(ctx, cfg, row_threads=row_threads)
     try:
         gl = g.simulate(depth, np.random.default_rng(seed), **kw)
     finally:
@@ -147,18 +147,27 @@ def _agree(cpu, gl, max_pixels=0, mm=1):
     assert gap.max(initial=0) <= mm
 
 
+# the row scans (shadows, registration, the speckle filter's runs) in both layouts: one
+# invocation a row (what llvmpipe runs) and several with the stretches combined in shared
+# memory (what a GPU runs: 128; 8 leaves 20 pixels a stretch at 160 wide, 128 at 157 wide
+# leaves invocations with empty stretches)
+ROW_LAYOUTS = pytest.mark.parametrize("row_threads,width", [(None, W), (8, W), (128, 157)])
+
+
 @pytest.mark.gl
-def test_gate_shadow_registration_quantisation_match_the_cpu(gl_ctx, tmp_path):
+@ROW_LAYOUTS
+def test_gate_shadow_registration_quantisation_match_the_cpu(gl_ctx, tmp_path, row_threads,
+                                                             width):
     cfg = _cfg("  - range_gate: {z_min_m: 0.5, z_max_m: 2.5}\n"
                "  - projector_shadow: {}\n"
                "  - disparity_quantisation: {step_px: 0.0765}\n"
                "  - registration: {ir_offset_m: -0.0229, left_px: 5, right_px: 4, top_px: 3,"
                " bottom_px: 2}\n"
-               "  - encode: {raw11: true}\n", tmp_path)
-    z = _steps(far=2.2)
+               "  - encode: {raw11: true}\n", tmp_path, width=width)
+    z = _steps(far=2.2, w=width)
     z[:, -10:] = 4.0  # gated away
     z[0, 0] = np.nan  # no hit
-    cpu, gl = _both(gl_ctx, cfg, z)
+    cpu, gl = _both(gl_ctx, cfg, z, row_threads=row_threads)
     _agree(cpu, gl, max_pixels=0, mm=1)
     for cause in ("range", "shadow", "registration", "no_hit"):
         assert np.array_equal(cpu.hole_masks[cause], gl.hole_masks[cause]), cause
@@ -232,13 +241,14 @@ def test_lens_distortion_matches_the_cpu(gl_ctx, tmp_path):
 
 
 @pytest.mark.gl
-def test_speckle_filter_matches_the_cpu(gl_ctx, tmp_path):
-    cfg = _cfg("  - speckle_filter: {max_area_px: 20}\n", tmp_path)
+@ROW_LAYOUTS
+def test_speckle_filter_matches_the_cpu(gl_ctx, tmp_path, row_threads, width):
+    cfg = _cfg("  - speckle_filter: {max_area_px: 20}\n", tmp_path, width=width)
     rng = np.random.default_rng(4)
-    z = np.where(rng.random((H, W)) < 0.55, 2.0, 0.0)  # islands of every size
+    z = np.where(rng.random((H, width)) < 0.55, 2.0, 0.0)  # islands of every size
     z[40:80, 40:120] = 2.0  # and one big component
     z[60, 60:100] = 0.0  # with a cut that is not one
-    cpu, gl = _both(gl_ctx, cfg, z)
+    cpu, gl = _both(gl_ctx, cfg, z, row_threads=row_threads)
     assert cpu.holes["speckle"] > 100
     np.testing.assert_array_equal(cpu.valid, gl.valid)
     np.testing.assert_array_equal(cpu.hole_masks["speckle"], gl.hole_masks["speckle"])

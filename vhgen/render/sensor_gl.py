@@ -22,6 +22,7 @@ from typing import Any, ClassVar, Generic, TypeVar
 import numpy as np
 
 from vhgen.errors import RenderError
+from vhgen.render.context import is_software_renderer
 from vhgen.render.renderer import _park, _shader
 from vhgen.sensor.effects import (
     AxialNoise,
@@ -48,7 +49,8 @@ _PASSES: dict[type[EffectSpec], type[GLPass[Any]]] = {}
 
 GL_VERSION_NEEDED = 430  # compute shaders and shader storage buffers
 _LOCAL = 8  # work group edge of the per-pixel programs (8 x 8)
-_ROWS = 32  # work group of the row scans
+_ROWS = 32  # rows a work group of the row scans with one invocation a row
+GPU_ROW_THREADS = 128  # invocations a row of the row scans on a GPU (row_scan.glsl)
 # names the shaders use for the hole causes, effects and steps (#defines)
 _CONSTANTS: dict[str, object] = {c.upper(): i for i, c in enumerate(HOLE_CAUSES)}
 _CONSTANTS.update({k: i + 1 for i, k in enumerate((
@@ -98,17 +100,28 @@ class GLSensorModel:
     needs their result: openni_525 runs its 11 per-pixel steps as 5 programs.
 
     ctx : a current moderngl context (see :mod:`vhgen.render.context`).
+    row_threads : invocations a row in the row scans (shadows, registration, the speckle
+        filter's runs; ``row_scan.glsl``): None picks 1 on a software renderer (llvmpipe,
+        where work-group barriers cost more than walking a row) and
+        :data:`GPU_ROW_THREADS` on a GPU. The output is the same either way.
     Raises :class:`RenderError` (one line naming ``sensor.backend: cpu``) when the context
     has no compute shaders, or when an effect has no GL pass.
     """
 
-    def __init__(self, ctx, cfg: SensorConfig):
+    def __init__(self, ctx, cfg: SensorConfig, row_threads: int | None = None):
         if ctx.version_code < GL_VERSION_NEEDED:
             raise RenderError(f"the GL sensor needs OpenGL 4.3 compute shaders; this context "
                               f"is {ctx.version_code // 100}.{ctx.version_code % 100 // 10} "
                               f"({ctx.info.get('GL_RENDERER', '?')}): use sensor.backend: cpu")
         self.ctx = ctx
         self.cfg = cfg
+        if row_threads is None:
+            soft = is_software_renderer(ctx.info.get("GL_RENDERER", ""))
+            row_threads = 1 if soft else GPU_ROW_THREADS
+        if row_threads not in (1, 2, 4, 8, 16, 32, 64, 128, 256):
+            raise ValueError(f"row_threads {row_threads}: a power of two up to 256")
+        self.row_threads = row_threads
+        self.row_group = _ROWS if row_threads == 1 else 1  # rows a work group
         intr = cfg.intrinsics
         self.width, self.height = intr.width, intr.height
         self.fb = intr.fx * cfg.baseline_m
@@ -158,7 +171,10 @@ class GLSensorModel:
         k = (name, tuple(sorted(defines.items())))
         prog = self._programs.get(k)
         if prog is None:
-            prog = self.ctx.compute_shader(_shader(name, {**_CONSTANTS, **defines}))
+            prog = self.ctx.compute_shader(_shader(name, {
+                **_CONSTANTS, "ROW_THREADS": self.row_threads, "ROW_GROUP": self.row_group,
+                "ROW_LOCAL": self.row_threads * self.row_group,
+                **defines}))
             self._set(prog, size=(self.width, self.height), fb=self.fb, intr=self.intr,
                       key=self._key)
             self._programs[k] = prog
@@ -215,14 +231,14 @@ class GLSensorModel:
 
     def dispatch(self, prog, rows: bool = False, local: int = _LOCAL,
                  **uniforms: object) -> None:
-        """Run ``prog`` over the image (one invocation per pixel, or per row with
-        ``rows``; ``local``: the program's work group edge) on the current state
-        (bindings 0-3) and spares (4-7), after the queued per-pixel steps."""
+        """Run ``prog`` over the image (one invocation per pixel, or a row scan with
+        ``rows``: row_scan.glsl; ``local``: the program's work group edge) on the current
+        state (bindings 0-3) and spares (4-7), after the queued per-pixel steps."""
         self.flush()
         self._set(prog, **uniforms)
         self._bind_state()
         if rows:
-            prog.run(-(-self.height // _ROWS), 1, 1)
+            prog.run(-(-self.height // self.row_group), 1, 1)  # row_scan.glsl
         else:
             prog.run(-(-self.width // local), -(-self.height // local), 1)
         self.ctx.memory_barrier()

@@ -4,8 +4,10 @@
 // GPUs", IEEE TPDS 2018: the "union find" variant; a fixed number of passes, no
 // iteration), then each component's area; components of at most max_area pixels become
 // holes (cause SPECKLE). STEP defined by the host:
-//   ROWS:     one invocation per row: label[p] = the first pixel of p's run of valid
-//             pixels in the row, NONE on invalid pixels (the rows' unions, for free);
+//   ROWS:     a row scan (row_scan.glsl): label[p] = the first pixel of
+//             p's run of valid pixels in the row, NONE on invalid pixels (the rows'
+//             unions, for free): one past the last invalid pixel before p, a running
+//             maximum;
 //   MERGE:    a valid pixel with a valid pixel above joins the two trees, unless its left
 //             neighbour and the one above that are valid too (the same two runs are then
 //             already joined there): the larger root is pointed at the smaller one
@@ -13,12 +15,13 @@
 //             component's smallest pixel;
 //   COUNT:    every label replaced by its root, and area[root] += 1;
 //   REMOVE:   pixels of small components become holes.
+#include "sensor.glsl"
 #if STEP == ROWS
-layout(local_size_x = 32) in;
+#include "row_scan.glsl"
+layout(local_size_x = ROW_LOCAL) in;
 #else
 layout(local_size_x = 8, local_size_y = 8) in;
 #endif
-#include "sensor.glsl"
 
 layout(std430, binding = 8) coherent buffer Label { uint label[]; };
 layout(std430, binding = 9) buffer Area { uint area[]; };
@@ -56,17 +59,25 @@ void join(uint a, uint b) {
 
 void main() {
 #if STEP == ROWS
-    int y = int(gl_GlobalInvocationID.x);
-    if (y >= size.y) return;
-    uint start = NONE;
-    for (int x = 0; x < size.x; ++x) {
-        uint p = uint(y * size.x + x);
+    int y = row_y();
+    if (y >= size.y) return;  // a whole group where rows have several invocations
+    uint row = uint(y * size.x);
+    int x0 = row_x0(), x1 = row_x1();
+    float last = -1.0;  // the last invalid pixel of the stretch (exact as a float)
+#if ROW_THREADS > 1
+    for (int x = x0; x < x1; ++x) {
+        if (!is_valid(row + uint(x))) last = float(x);
+    }
+#endif
+    int gap = int(row_exclusive(last, false, true, -1.0));  // the last one before it
+    for (int x = x0; x < x1; ++x) {
+        uint p = row + uint(x);
         if (is_valid(p)) {
-            if (start == NONE) start = p;
+            label[p] = row + uint(gap + 1);
         } else {
-            start = NONE;
+            gap = x;
+            label[p] = NONE;
         }
-        label[p] = start;
     }
 #else
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
