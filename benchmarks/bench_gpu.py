@@ -312,7 +312,7 @@ def main() -> None:
     ap.add_argument("--frames-per-shard", type=int, default=0,
                     help="override the config's output.frames_per_shard")
     ap.add_argument("--frame-step", type=int, default=0,
-                    help="override the config's poses.frame_step (4: a 4,800-frame plan of "
+                    help="override the config's poses.frame_step (4: a 7,034-frame plan of "
                     "cluttered_room over the CMU corpus)")
     ap.add_argument("--motions", nargs="+", help="BVH files or folders instead of the "
                     "config's motions (e.g. ../shared/mocap/cmu)")

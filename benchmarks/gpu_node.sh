@@ -1,6 +1,6 @@
 #!/bin/bash
-# Issue 28's measurements on a GPU node, in one run of about 7 minutes (an H200 and 16
-# cores: six 4,800-frame jobs at ~300 frames/s, their start-up, the description timing):
+# Issue 28's measurements on a GPU node, in one run of about 4 minutes (an H200 and 16
+# cores: six 4,800-frame jobs at 300-500 frames/s, their start-up, the description timing):
 #
 #   bash benchmarks/gpu_node.sh [MOTIONS]          # in the project root, vhgen importable
 #   bash .gpu/run.sh bash benchmarks/gpu_node.sh   # a node without network (gpu_bundle.sh)
