@@ -4,7 +4,7 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
         [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
-        [--layout-frames 1,16] [--batch-frames 0,4,16] [--gl-calls N]
+        [--layout-frames 1,16] [--batch-frames 0,4,16] [--gl-calls N] [--profile N]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -35,6 +35,14 @@ record; no store), then N more with every GL call of the frame path (each comput
 dispatch, by program; buffer reads, writes and clears; texture uploads; draws; read-backs;
 memory barriers) between two ``glFinish``, so each row is the call's own GPU and driver
 time. The first line gives ms per frame without and with the instrumentation.
+
+``--profile N`` instead profiles one worker's CPU in this process (cProfile): a
+``FrameWorker`` set up as in a job of ``max(--workers)`` workers (its share of codec
+threads), the first shard unreported, then whole shards (describe, draw, sense, read back,
+decode, record, write the shard into a temporary store) until N frames; the first
+``--layout-frames`` and ``--batch-frames`` value apply. Prints ms a frame under the
+profiler and the 25 functions that take the most, by own time and with what they call.
+On a GPU node this is where the CPU of a frame goes and what waits for the GPU.
 
 Fewer shards than workers leave workers idle (a row says how many ran): on a GPU node use
 enough frames for several shards per worker, e.g. ``--frames 2400 --workers 4,8,16,32``
@@ -280,6 +288,52 @@ def gl_calls(cfg: JobConfig, frames: int) -> None:
     print(f"{1e3 * sum(spent.values()) / frames:8.3f} {'':11s}  every GL call")
 
 
+def profile(cfg: JobConfig, frames: int, workers: int, top: int = 25) -> None:
+    """Print where one worker's CPU time goes (see the module docstring)."""
+    import cProfile
+    import pstats
+
+    from vhgen.pipeline.job import prepare_job
+    from vhgen.pipeline.worker import FrameWorker
+    from vhgen.store.zarr_store import create_store
+
+    cfg = replace(cfg, num_workers=workers)  # the worker's share of codec threads
+    job = prepare_job(cfg)
+    tasks = job.plan.tasks
+    worker = FrameWorker(cfg)
+    renderer = worker.load(job)
+    intr = cfg.sensor.intrinsics
+    with tempfile.TemporaryDirectory(prefix="vhgen-bench-gpu-") as tmp:
+        store = str(Path(tmp) / "job.zarr")
+        create_store(store, num_frames=job.plan.num_frames, height=intr.height,
+                     width=intr.width, frames_per_shard=cfg.frames_per_shard, attrs={},
+                     compression_level=cfg.compression_level, arrays=cfg.arrays,
+                     codec=cfg.codec, palette=cfg.palette)
+        worker.run(store, tasks[0].shard, tasks[0].start, tasks[0].stop)  # unreported
+        prof, done = cProfile.Profile(), 0
+        t = time.perf_counter()
+        for task in tasks[1:]:
+            if done >= frames:
+                break
+            prof.enable()
+            worker.run(store, task.shard, task.start, task.stop)
+            prof.disable()
+            done += task.stop - task.start
+        wall = time.perf_counter() - t
+    worker.gen.close()
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    print(f"GL renderer: {renderer}; one worker of {workers}, {done} frames after one "
+          f"unreported shard: {1e3 * wall / max(done, 1):.1f} ms a frame under the "
+          f"profiler (describe, draw, sensor, read back, decode, record, write the shard)")
+    for key, title in ((2, "own time"), (3, "time with what it calls")):
+        print(f"{'ms/frame':>8s} {'calls/frame':>11s}  function, by {title}")
+        rows = sorted(stats.items(), key=lambda kv: -kv[1][key])[:top]
+        for (file, line, name), st in rows:
+            where = f"{Path(file).name}:{line}({name})" if line else name
+            print(f"{1e3 * st[key] / max(done, 1):8.3f} {st[1] / max(done, 1):11.2f}  "
+                  f"{where}")
+
+
 def _ints(text: str, what: str, lo: int, hi: int) -> list[int]:
     try:
         values = [int(v) for v in text.split(",")]
@@ -332,11 +386,22 @@ def main() -> None:
                          "0,4,16; default: the config's)")
     ap.add_argument("--gl-calls", type=int, metavar="N", default=0,
                     help="time one worker's GL calls over N frames instead (no job)")
+    ap.add_argument("--profile", type=int, metavar="N", default=0,
+                    help="profile one worker's CPU over N frames instead (no job; "
+                         "--workers: the job's worker count it takes its share for)")
     args = ap.parse_args()
 
     cfg = load_config(args)
     if args.gl_calls:
         gl_calls(cfg, args.gl_calls)
+        return
+    if args.profile:
+        layouts, batches = args.layout_frames or [], args.batch_frames or []
+        if layouts:
+            cfg = replace(cfg, scene=replace(cfg.scene, layout_frames=layouts[0]))
+        if batches:
+            cfg = replace(cfg, batch_frames=batches[0])
+        profile(cfg, args.profile, max(args.workers))
         return
     sampler_probe = shutil.which(SMI[0]) is not None
     print(f"vhgen whole job: config {cfg.name}, {args.frames} frames in shards of "
