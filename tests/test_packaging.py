@@ -89,3 +89,21 @@ def test_installed_wheel_runs_the_default_job_elsewhere(wheel, tmp_path, asset_d
     assert body_min > 5000 and 800 < depth_max < 4000
     _sh([str(venv / "bin" / "vhgen"), "preview", "run.zarr", "-o", "p.png"], cwd=work, env=env)
     assert (work / "p.png").stat().st_size > 10_000
+
+
+def test_a_source_tree_without_a_build_finds_its_configs(tmp_path):
+    """vhgen imported from a checkout on sys.path with no build (PYTHONPATH=., or pytest
+    putting the repository first on a machine where vhgen is installed from the wheel, as
+    on a GPU node) has no vhgen.configs package: the configs are the folder beside it."""
+    import sysconfig
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
+    # -S: no site, so no editable install's finder; the dependencies by path
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), sysconfig.get_paths()["purelib"]])
+    out = _sh([sys.executable, "-S", "-c", "import vhgen, vhgen.yamlio as y; "
+               "from vhgen.sensor.sensor_config import SensorConfig; "
+               "print(vhgen.__file__); print(y.configs_dir()); "
+               "print(SensorConfig.load('openni_525').name)"], cwd=tmp_path, env=env)
+    package, configs, sensor = out.strip().splitlines()[-3:]
+    assert package == str(REPO / "vhgen" / "__init__.py")
+    assert configs == str(REPO / "configs") and sensor == "openni_525"

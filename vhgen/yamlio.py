@@ -109,9 +109,18 @@ def configs_dir() -> Path:
 
     The repository keeps them in ``configs/`` at its top; the build maps that folder into
     the package (setup.py), so an editable install and an installed wheel both find them
-    here, wherever the user's working directory is.
+    here, wherever the user's working directory is. A source tree on ``sys.path`` without
+    a build (``PYTHONPATH=.``; pytest puts the repository first when vhgen is installed
+    elsewhere, as on a GPU node with the bundle) has no ``vhgen.configs``: then the
+    ``configs/`` beside the package.
     """
-    return Path(str(resources.files("vhgen.configs")))
+    try:
+        return Path(str(resources.files("vhgen.configs")))
+    except ModuleNotFoundError:
+        beside = Path(__file__).resolve().parent.parent / "configs"
+        if beside.is_dir():
+            return beside
+        raise
 
 
 def find_config(kind: str, name_or_path: str | Path) -> Path:
