@@ -1,7 +1,7 @@
 #!/bin/bash
-# Issue 28's measurements on a GPU node, in one run of about 3 minutes (an H200 and 16
-# cores: where one worker's GL time and CPU time go, the description timing, then four
-# 7,034-frame jobs at 350-500 frames/s with their start-up):
+# Issue 28's checks and measurements on a GPU node, in one run of about 4 minutes (an H200
+# and 16 cores: the GL sensor's tests on the GPU, where one worker's GL time and CPU time
+# go, the description timing, then four 7,034-frame jobs at 350-500 frames/s):
 #
 #   bash benchmarks/gpu_node.sh [MOTIONS]          # in the project root, vhgen importable
 #   bash .gpu/run.sh bash benchmarks/gpu_node.sh   # a node without network (gpu_bundle.sh)
@@ -10,7 +10,10 @@
 # ../shared: copy the folder into the bundle and name it). PYTHON, WORKERS and BACKEND
 # override python3, 16 and egl (BACKEND=osmesa WORKERS=2 FRAMES=96 tries it on a CPU);
 # FRAMES the frames of each job (default all 7,034 of the plan at --frame-step 4).
-# Prints: the GPU; bench_gpu.py --gl-calls (each GL call of a frame finished before the
+# Prints: the GPU; the tests of the GL sensor against the CPU sensor (both row-scan
+# layouts), of its batches and of their decoding, with the GPU's EGL (python -m pytest
+# puts the checkout first on sys.path; no OSMesa there: its cases left out);
+# bench_gpu.py --gl-calls (each GL call of a frame finished before the
 # next: its GPU and driver time) and --profile (one worker's CPU by function, batch 4,
 # layout_frames 16); the scene description's ms a frame with placement compiled and with
 # its NumPy references (bench_placement.py); then the cluttered_room job (CMU corpus,
@@ -26,6 +29,8 @@ B=${BACKEND:-egl}
 F=${FRAMES:-19200}
 command -v nvidia-smi > /dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
 nproc
+"$PY" -m pytest -q -p no:cacheprovider -k "not osmesa" tests/render/test_sensor_gl.py \
+    tests/render/test_frame_words.py tests/pipeline/test_gl_sensor_job.py
 JOB=("$PY" benchmarks/bench_gpu.py --config cluttered_room --backend "$B" --sensor-backend gl
      --motions "$M" --frame-step 4)
 "${JOB[@]}" --layout-frames 16 --batch-frames 4 --gl-calls 64
