@@ -4,7 +4,8 @@ renderer and the GPU's busy share: the measurement of a GPU node (issue 28).
     .venv/bin/python benchmarks/bench_gpu.py [--config cluttered_room] [--workers 1,2,4]
         [--frames 32] [--frames-per-shard N] [--motions PATH ...] [--sensor NAME]
         [--sensor-backend cpu|gl] [--backend egl|osmesa] [--repeat 1] [--no-warmup]
-        [--layout-frames 1,16] [--batch-frames 0,4,16] [--gl-calls N] [--profile N]
+        [--layout-frames 1,16] [--batch-frames 0,4,16] [--gl-calls N [--row-threads 1,128]]
+        [--profile N]
 
 Each worker count runs the same job (``run_job``, the local executor: worker processes on
 this machine, one GL context each) over the first ``--frames`` frames of the config's plan
@@ -35,6 +36,9 @@ record; no store), then N more with every GL call of the frame path (each comput
 dispatch, by program; buffer reads, writes and clears; texture uploads; draws; read-backs;
 memory barriers) between two ``glFinish``, so each row is the call's own GPU and driver
 time. The first line gives ms per frame without and with the instrumentation.
+``--row-threads 1,128`` repeats it with the GL sensor's row scans (shadows,
+registration, the speckle filter's runs) at one invocation a row and at 128 (the GPU
+layout, ``row_scan.glsl``), side by side in one run.
 
 ``--profile N`` instead profiles one worker's CPU in this process (cProfile): a
 ``FrameWorker`` set up as in a job of ``max(--workers)`` workers (its share of codec
@@ -224,8 +228,9 @@ def print_table(rows: list[Row], gpu_available: bool) -> None:
               f"{'-' if r.cpu is None else f'{r.cpu:.0f}':>10s}")
 
 
-def gl_calls(cfg: JobConfig, frames: int) -> None:
-    """Print where one worker's GL time goes (see the module docstring)."""
+def gl_calls(cfg: JobConfig, frames: int, row_threads: int | None = None) -> None:
+    """Print where one worker's GL time goes (see the module docstring); ``row_threads``:
+    the GL sensor's invocations a row in its row scans (None: its own choice)."""
     from collections import defaultdict
     from collections.abc import Callable
     from typing import Any
@@ -237,6 +242,11 @@ def gl_calls(cfg: JobConfig, frames: int) -> None:
 
     gen = FrameGenerator(prepare_job(cfg))
     ctx = gen.ctx
+    if row_threads is not None and gen.gl_sensor is not None:
+        from vhgen.render.sensor_gl import GLSensorModel
+
+        gen.gl_sensor.release()
+        gen.sensor = gen.gl_sensor = GLSensorModel(ctx, cfg.sensor, row_threads)
     plan = gen.job.plan.num_frames
     for f in range(16):
         gen.render_frame(f % plan)
@@ -247,10 +257,12 @@ def gl_calls(cfg: JobConfig, frames: int) -> None:
     names = {id(prog): name.removesuffix(".comp") + ":" + str(dict(defs).get("STEP", ""))
              for (name, defs), prog in getattr(gen.sensor, "_programs", {}).items()}
     spent: dict[str, float] = defaultdict(float)
+    originals: list[tuple[Any, str, Any]] = []  # put back at the end
     calls: dict[str, int] = defaultdict(int)
 
     def wrap(cls: Any, method: str, label: Callable[[Any], str]) -> None:
         original = getattr(cls, method)
+        originals.append((cls, method, original))
 
         def timed(obj: Any, *a: Any, **k: Any) -> Any:
             ctx.finish()
@@ -276,11 +288,18 @@ def gl_calls(cfg: JobConfig, frames: int) -> None:
     wrap(moderngl.VertexArray, "render", lambda _: "draw")
     wrap(moderngl.Context, "memory_barrier", lambda _: "memory_barrier")
     t = time.perf_counter()
-    for f in range(16 + frames, 16 + 2 * frames):
-        gen.render_frame(f % plan)
+    try:
+        for f in range(16 + frames, 16 + 2 * frames):
+            gen.render_frame(f % plan)
+    finally:
+        for cls, method, original in originals:
+            setattr(cls, method, original)
     timed_frame = (time.perf_counter() - t) / frames
+    threads = getattr(gen.gl_sensor, "row_threads", None)
     gen.close()
-    print(f"GL renderer: {gen.renderer_info}; a frame (describe, draw, sensor, record): "
+    scans = f", row scans: {threads} invocations a row" if threads else ""
+    print(f"GL renderer: {gen.renderer_info}{scans}; a frame (describe, draw, sensor, "
+          f"record): "
           f"{1e3 * plain:.1f} ms, {1e3 * timed_frame:.1f} ms with every GL call finished")
     print(f"{'ms/frame':>8s} {'calls/frame':>11s}  GL call")
     for k, v in sorted(spent.items(), key=lambda kv: -kv[1]):
@@ -348,6 +367,13 @@ def _counts(text: str) -> list[int]:
     return _ints(text, "worker counts", 1, 4096)
 
 
+def _row_threads(text: str) -> list[int]:
+    values = _ints(text, "invocations a row", 1, 256)
+    if any(v & (v - 1) for v in values):
+        raise argparse.ArgumentTypeError(f"{text}: invocations a row are powers of two")
+    return values
+
+
 def _layouts(text: str) -> list[int]:
     return _ints(text, "layout_frames values", 1, 100000)
 
@@ -386,6 +412,10 @@ def main() -> None:
                          "0,4,16; default: the config's)")
     ap.add_argument("--gl-calls", type=int, metavar="N", default=0,
                     help="time one worker's GL calls over N frames instead (no job)")
+    ap.add_argument("--row-threads", type=_row_threads, metavar="LIST",
+                    help="--gl-calls: once for each of these invocations a row in the GL "
+                         "sensor's row scans, in turn (e.g. 1,128: one a row against the "
+                         "GPU layout; default: the sensor's own choice)")
     ap.add_argument("--profile", type=int, metavar="N", default=0,
                     help="profile one worker's CPU over N frames instead (no job; "
                          "--workers: the job's worker count it takes its share for)")
@@ -393,7 +423,8 @@ def main() -> None:
 
     cfg = load_config(args)
     if args.gl_calls:
-        gl_calls(cfg, args.gl_calls)
+        for n in args.row_threads or [None]:
+            gl_calls(cfg, args.gl_calls, n)
         return
     if args.profile:
         layouts, batches = args.layout_frames or [], args.batch_frames or []

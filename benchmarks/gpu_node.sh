@@ -13,9 +13,9 @@
 # Prints: the GPU; the tests of the GL sensor against the CPU sensor (both row-scan
 # layouts), of its batches and of their decoding, with the GPU's EGL (python -m pytest
 # puts the checkout first on sys.path; no OSMesa there: its cases left out);
-# bench_gpu.py --gl-calls (each GL call of a frame finished before the
-# next: its GPU and driver time) and --profile (one worker's CPU by function, batch 4,
-# layout_frames 16); the scene description's ms a frame with placement compiled and with
+# bench_gpu.py --gl-calls (each GL call of a frame finished before the next: its GPU and
+# driver time), with the row scans at 128 and at 1 invocations a row, and --profile (one
+# worker's CPU by function, batch 4, layout_frames 16); the scene description's ms a frame with placement compiled and with
 # its NumPy references (bench_placement.py); then the cluttered_room job (CMU corpus,
 # clothed people, clutter, openni_525 with sensor.backend gl) with scene.layout_frames 16
 # and 1, each with render.batch_frames 4 (batches, two in flight) and 0 (every frame read
@@ -33,7 +33,7 @@ nproc
     tests/render/test_frame_words.py tests/pipeline/test_gl_sensor_job.py
 JOB=("$PY" benchmarks/bench_gpu.py --config cluttered_room --backend "$B" --sensor-backend gl
      --motions "$M" --frame-step 4)
-"${JOB[@]}" --layout-frames 16 --batch-frames 4 --gl-calls 64
+"${JOB[@]}" --layout-frames 16 --batch-frames 4 --gl-calls 64 --row-threads 128,1
 "${JOB[@]}" --layout-frames 16 --batch-frames 4 --workers "$W" --profile 512
 "$PY" benchmarks/bench_placement.py --motions "$M" --frames 128 --repeat 3
 "${JOB[@]}" --workers "$W" --frames "$F" --layout-frames 16,1 --batch-frames 4,0
