@@ -12,15 +12,16 @@
 # FRAMES the frames of each job (default all 7,034 of the plan at --frame-step 4).
 # Prints: the GPU; the tests of the GL sensor against the CPU sensor (both row-scan
 # layouts), of its batches and of their decoding, with the GPU's EGL (python -m pytest
-# puts the checkout first on sys.path; no OSMesa there: its cases left out);
-# bench_gpu.py --gl-calls (each GL call of a frame finished before the next: its GPU and
-# driver time), with the row scans at 128 and at 1 invocations a row, and --profile (one
-# worker's CPU by function, batch 4, layout_frames 16); the scene description's ms a frame with placement compiled and with
-# its NumPy references (bench_placement.py); then the cluttered_room job (CMU corpus,
-# clothed people, clutter, openni_525 with sensor.backend gl) with scene.layout_frames 16
-# and 1, each with render.batch_frames 4 (batches, two in flight) and 0 (every frame read
-# back before the next is drawn) (bench_gpu.py: frames/s over the dispatch and steady, GPU
-# and CPU busy). Put the tables and this command in docs/performance.md.
+# puts the checkout first on sys.path; no OSMesa there: its cases left out); bench_gpu.py
+# --gl-calls (each GL call of a frame finished before the next: its GPU and driver time),
+# with the row scans at 128 and at 1 invocations a row, and --profile (one worker's CPU by
+# function, batch 4, layout_frames 16); the scene description's ms a frame with placement
+# compiled and with its NumPy references (bench_placement.py); then the cluttered_room job
+# (CMU corpus, clothed people, clutter, openni_525 with sensor.backend gl) with
+# scene.layout_frames 16 and 1, each with render.batch_frames 4 (batches, two in flight)
+# and 0 (every frame read back before the next is drawn) (bench_gpu.py: frames/s over the
+# dispatch and steady, GPU and CPU busy). Put the tables and this command in
+# docs/performance.md.
 set -u
 M=${1:-../shared/mocap/cmu}
 PY=${PYTHON:-python3}
