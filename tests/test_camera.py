@@ -35,3 +35,18 @@ def test_look_at_axes():
     np.testing.assert_allclose(r @ [1, 0, 0], [1, 0, 0], atol=1e-12)
     np.testing.assert_allclose(r @ [0, 1, 0], [0, -1, 0], atol=1e-12)
     np.testing.assert_allclose(w2c @ [0, 1, 0, 1], [0, 0, 3, 1], atol=1e-12)
+
+
+def test_skip_camera_draws_what_sample_camera_draws():
+    """A frame of a shared layout skips its own camera; its stream (the sensor noise that
+    follows) must go on exactly where placing the camera would have left it."""
+    from vhgen.camera import CameraConfig, sample_camera, skip_camera
+
+    for cfg in (CameraConfig(), CameraConfig(pitch_deg=(5.0, 20.0), roll_deg=(-2.0, 2.0)),
+                CameraConfig(distance_m=(2.0, 2.0), pitch_deg=(10.0, 10.0))):
+        for seed in range(5):
+            placed, skipped = np.random.default_rng(seed), np.random.default_rng(seed)
+            sample_camera(placed, cfg)
+            skip_camera(skipped, cfg)
+            assert placed.bit_generator.state == skipped.bit_generator.state
+            assert placed.random() == skipped.random()

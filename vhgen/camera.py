@@ -179,3 +179,10 @@ def sample_camera(rng: np.random.Generator, cfg: CameraConfig) -> CameraPose:
     roll = float(rng.uniform(*cfg.roll_deg))
     w2c = mounted_camera(eye, pitch, roll)
     return CameraPose(w2c, float(yaw), float(dist), float(height), pitch, roll)
+
+
+def skip_camera(rng: np.random.Generator, cfg: CameraConfig) -> None:
+    """Advance ``rng`` past the draws of :func:`sample_camera` without placing a camera
+    (a frame of a shared layout takes the layout's camera; its stream goes on from where
+    it would): one double for each of them, as ``Generator.uniform`` draws one each."""
+    rng.random(4 if cfg.pitch_deg is None else 5)

@@ -9,7 +9,7 @@ from vhgen.body.avatar import Body, build_avatar
 from vhgen.body.skin_kernels import footprint as floor_footprint
 from vhgen.body.skin_kernels import skin_points
 from vhgen.body.skinning import matrices_from_heads, posed_heads
-from vhgen.camera import sample_camera
+from vhgen.camera import sample_camera, skip_camera
 from vhgen.pipeline.job import Job
 from vhgen.scene.background.people import layout_background
 from vhgen.scene.description import FrameDescription, Person
@@ -111,7 +111,10 @@ class FrameDescriber:
                              ground=sc.floor, footprint=not sc.is_person_only)
         if job.backgrounds is not None:
             return self._on_background(frame, seed, rng, person)
-        cam = sample_camera(rng, job.cfg.camera)
+        if sc.layout_frames > 1 and not sc.is_person_only:  # the layout's camera
+            skip_camera(rng, job.cfg.camera)
+        else:
+            cam = sample_camera(rng, job.cfg.camera)
         noise_state = rng.bit_generator.state
         if sc.is_person_only:
             return FrameDescription(frame, seed, cam, (person,), (), None, noise_state)
