@@ -1,7 +1,7 @@
 """The scene description of a frame with placement compiled and with its NumPy reference.
 
     python benchmarks/bench_placement.py [--config cluttered_room] [--motions ../shared/mocap/cmu]
-        [--frames 128] [--repeat 3]
+        [--frames 128] [--repeat 3] [--layout-frames N]
 
 Describes the same ``--frames`` frames of a scene config (``FrameDescriber.describe``: the
 camera, the room, the people posed and placed, props and clutter; no GL) in one process,
@@ -9,10 +9,15 @@ three ways taking turns for ``--repeat`` passes:
 
 * ``compiled``: what vhgen runs (clutter candidates and their screening in
   :mod:`vhgen.scene.clutter.place_kernels`, people kept in view by
-  :func:`vhgen.scene.placement.all_visible`);
+  :func:`vhgen.scene.placement.all_visible`, and in a shared layout by
+  :func:`vhgen.scene.solids.visible_fraction_compiled`);
 * ``numpy clutter``: the clutter's NumPy references (``_candidates_reference``,
   ``_first_fit_reference``), people as compiled;
-* ``numpy``: every reference (people by ``visible_fraction``, as before 2026-11-29).
+* ``numpy``: every reference (people by ``visible_fraction``, as before 2026-11-29, and
+  in a shared layout by ``visible_fraction_with``, as before 2026-11-30).
+
+``--layout-frames N`` sets ``scene.layout_frames`` (frames sharing a room, props and
+clutter, as a GPU node runs them: 16 there).
 
 All three describe the same frames (checked: the same clutter, props and people placed).
 A pass over the frames first fills the worker's clutter library and compiles the kernels.
@@ -48,18 +53,21 @@ def _way(name: str) -> Iterator[None]:
     import vhgen.scene.background.people as bg_people
     import vhgen.scene.clutter.place as place
     import vhgen.scene.layout as layout
+    from vhgen.scene.solids import visible_fraction_with
 
-    saved = (place._candidates, place._first_fit, layout.all_visible, bg_people.all_visible)
+    saved = (place._candidates, place._first_fit, layout.all_visible, bg_people.all_visible,
+             layout.visible_fraction_compiled)
     try:
         if name != "compiled":
             place._candidates = place._candidates_reference
             place._first_fit = place._first_fit_reference
         if name == "numpy":
             layout.all_visible = bg_people.all_visible = _reference_visibility()
+            layout.visible_fraction_compiled = visible_fraction_with  # type: ignore[assignment]
         yield
     finally:
         (place._candidates, place._first_fit, layout.all_visible,
-         bg_people.all_visible) = saved
+         bg_people.all_visible, layout.visible_fraction_compiled) = saved
 
 
 def _layout(desc: Any) -> tuple:
@@ -78,6 +86,8 @@ def main() -> None:
                     "config's motions (e.g. ../shared/mocap/cmu)")
     ap.add_argument("--frames", type=int, default=128)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--layout-frames", type=int, default=0,
+                    help="scene.layout_frames (default: the config's)")
     args = ap.parse_args()
 
     import vhgen.scene.layout as layout
@@ -90,6 +100,8 @@ def main() -> None:
         cfg = JobConfig.load(args.config)
         if args.motions:
             cfg = replace(cfg, motions=tuple(str(Path(m).resolve()) for m in args.motions))
+        if args.layout_frames:
+            cfg = replace(cfg, scene=replace(cfg.scene, layout_frames=args.layout_frames))
         job = prepare_job(cfg)
     except VhgenError as e:
         sys.exit(f"bench_placement: {e}")
@@ -126,7 +138,8 @@ def main() -> None:
                 n = len(frames)
                 times[name].append((1e3 * (time.perf_counter() - t) / n, 1e3 * spent[0] / n))
 
-    print(f"{args.config}: {len(frames)} frames, {args.repeat} passes each, in turns; "
+    print(f"{args.config}: {len(frames)} frames, layout_frames {cfg.scene.layout_frames}, "
+          f"{args.repeat} passes each, in turns; "
           f"the same layouts all three ways: {'yes' if same else 'NO'}")
     print("| placement | describe, ms/frame (median / least) | of which clutter | "
           "describe x numpy |")

@@ -16,12 +16,12 @@
 # --gl-calls (each GL call of a frame finished before the next: its GPU and driver time),
 # with the row scans at 128 and at 1 invocations a row, and --profile (one worker's CPU by
 # function, batch 4, layout_frames 16); the scene description's ms a frame with placement
-# compiled and with its NumPy references (bench_placement.py); then the cluttered_room job
-# (CMU corpus, clothed people, clutter, openni_525 with sensor.backend gl) with
-# scene.layout_frames 16 and 1, each with render.batch_frames 4 (batches, two in flight)
-# and 0 (every frame read back before the next is drawn) (bench_gpu.py: frames/s over the
-# dispatch and steady, GPU and CPU busy). Put the tables and this command in
-# docs/performance.md.
+# compiled and with its NumPy references (bench_placement.py, layout_frames 1 and 16);
+# then the cluttered_room job (CMU corpus, clothed people, clutter, openni_525 with
+# sensor.backend gl) with scene.layout_frames 16 and 1, each with render.batch_frames 4
+# (batches, two in flight) and 0 (every frame read back before the next is drawn)
+# (bench_gpu.py: frames/s over the dispatch and steady, GPU and CPU busy). Put the tables
+# and this command in docs/performance.md.
 set -u
 M=${1:-../shared/mocap/cmu}
 PY=${PYTHON:-python3}
@@ -37,4 +37,5 @@ JOB=("$PY" benchmarks/bench_gpu.py --config cluttered_room --backend "$B" --sens
 "${JOB[@]}" --layout-frames 16 --batch-frames 4 --gl-calls 64 --row-threads 128,1
 "${JOB[@]}" --layout-frames 16 --batch-frames 4 --workers "$W" --profile 512
 "$PY" benchmarks/bench_placement.py --motions "$M" --frames 128 --repeat 3
+"$PY" benchmarks/bench_placement.py --motions "$M" --frames 128 --repeat 3 --layout-frames 16
 "${JOB[@]}" --workers "$W" --frames "$F" --layout-frames 16,1 --batch-frames 4,0

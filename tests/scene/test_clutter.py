@@ -33,7 +33,12 @@ from vhgen.scene.geometry import WALL, room_walls
 from vhgen.scene.meshkit import BODY, OBJECT
 from vhgen.scene.meshkit import WALL as ROLE_WALL
 from vhgen.scene.placement import TALL_PROP_M, wall_clearance
-from vhgen.scene.solids import disc_polygon, separated, visible_fraction_with
+from vhgen.scene.solids import (
+    disc_polygon,
+    separated,
+    visible_fraction_compiled,
+    visible_fraction_with,
+)
 from vhgen.scene.walls import walls_with_openings
 
 SCENE = """
@@ -221,6 +226,39 @@ def test_solids_and_visibility_known_answers():
     assert visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [behind]) == 1.0
     half = visible_fraction_with(eye, np.array([0.0, 4.0]), 0.4, [], [wall - [1.0, 0]])
     assert 0.3 < half < 0.7
+
+
+def test_compiled_visibility_with_polygons_is_the_reference():
+    """visible_fraction_compiled (what a shared layout asks, one compiled call) gives
+    visible_fraction_with's fraction on thousands of random floor plans: 0-5 discs and
+    0-4 rotated boxes around a target, some behind the eye, some beyond the target."""
+    rng = np.random.default_rng(11)
+    fractions = []
+    for _ in range(3000):
+        eye = rng.uniform(-1, 1, 2)
+        target = np.array([rng.uniform(-2, 2), rng.uniform(1, 6)])
+        r = float(rng.uniform(0.1, 0.6))
+        discs = [(float(x), float(z), float(rr)) for x, z, rr in
+                 zip(rng.uniform(-2, 2, 5), rng.uniform(-1, 6, 5), rng.uniform(0.1, 0.6, 5),
+                     strict=True)][:int(rng.integers(0, 6))]
+        polys = []
+        for _ in range(int(rng.integers(0, 5))):
+            w, d, yaw = rng.uniform(0.1, 1.5), rng.uniform(0.1, 0.8), rng.uniform(0, np.pi)
+            box = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2
+            c, s_ = np.cos(yaw), np.sin(yaw)
+            polys.append(box @ np.array([[c, s_], [-s_, c]]) + [rng.uniform(-2, 2),
+                                                                 rng.uniform(-1, 6)])
+        ref = visible_fraction_with(eye, target, r, discs, polys)
+        assert visible_fraction_compiled(eye, target, r, discs, polys) == ref
+        fractions.append(ref)
+    fractions = np.array(fractions)
+    assert (fractions == 1.0).mean() < 0.8 and (fractions == 0.0).mean() < 0.5
+    assert ((fractions > 0) & (fractions < 1)).mean() > 0.1  # partly hidden, often
+    # the known answers of the reference
+    eye = np.zeros(2)
+    wall = np.array([[-1.0, 2.0], [1.0, 2.0], [1.0, 2.2], [-1.0, 2.2]])
+    assert visible_fraction_compiled(eye, np.array([0.0, 4.0]), 0.4, [], [wall]) == 0.0
+    assert visible_fraction_compiled(eye, np.array([0.0, 4.0]), 0.4, [], []) == 1.0
 
 
 # -- placement over many seeds ---------------------------------------------------------

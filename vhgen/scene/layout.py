@@ -45,7 +45,7 @@ from vhgen.scene.solids import (
     disc_polygon,
     disc_solid,
     separated,
-    visible_fraction_with,
+    visible_fraction_compiled,
 )
 from vhgen.scene.walls import walls_with_openings
 
@@ -424,8 +424,8 @@ def _in_view(shared: SharedLayout, eye: np.ndarray, people: list[Disc],
     placement)."""
     for p in people:
         others = [(q.x, q.z, q.r) for q in people if q is not p] + list(shared.tall_props)
-        if visible_fraction_with(eye, np.array([p.x, p.z]), p.r, others,
-                                 list(shared.hiding)) < least:
+        if visible_fraction_compiled(eye, np.array([p.x, p.z]), p.r, others,
+                                     list(shared.hiding)) < least:
             return False
     return True
 
