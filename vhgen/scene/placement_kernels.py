@@ -8,8 +8,11 @@ one candidate in one call, with the reference's arithmetic: the same bearings (N
 ``linspace``: i * step + start, the last one the end itself) and the same comparisons;
 each difference of bearings is wrapped by a remainder, not as ``np.angle(np.exp(1j *
 x))`` (a complex exponential and an ``atan2`` a sample), which may differ by an ulp and
-moves no decision unless a bearing sits on an occluder's edge (tests compare the two). Kept out of
-:mod:`vhgen.scene.placement` so that importing it compiles nothing.
+moves no decision unless a bearing sits on an occluder's edge (tests compare the two).
+:func:`visible_with` does the same for :func:`vhgen.scene.solids.visible_fraction_with`
+(discs and convex polygons in front of a target), which a shared layout asks of every
+person for every spot it tries. Kept out of :mod:`vhgen.scene.placement` so that
+importing it compiles nothing.
 """
 
 from __future__ import annotations
