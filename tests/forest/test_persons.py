@@ -100,6 +100,23 @@ def test_one_known_frame():
     assert "1-2 m" in text and "4-6" in text and "0.660" in text and "touching" in text
 
 
+def test_everyone_found_counts_frames_whose_every_person_is():
+    """The issue's "every person found": a frame counts only when all its people are;
+    frames with nobody visible are not in the share."""
+    called, depth, inst = known_frame()  # persons 1 and 2 found, 3 not
+    score = PeopleScore()
+    score.add(frame_people(called, depth, inst), ("s", 0))
+    everyone = called | (inst == 3)  # now person 3 too
+    score.add(frame_people(everyone, depth, inst), ("s", 1))
+    score.add(frame_people(everyone, depth, np.zeros_like(inst)), ("s", 2))  # nobody
+    res = score.result()
+    g = {r["bin"]: r for r in res["by_group"]}["2-3"]
+    assert (g["frames"], g["frames_everyone_found"], g["everyone_found"]) == (2, 1, 0.5)
+    assert res["overall"]["frames"] == 3 and res["overall"]["everyone_found"] == 0.5
+    assert {r["bin"]: r for r in res["by_group"]}["1"]["everyone_found"] is None
+    assert "all found" in table(res) and "0.500" in table(res)
+
+
 def test_one_pixel_short_of_half_is_not_found():
     called, depth, inst = known_frame()
     called[0, 4] = False  # person 2: 9 of 20

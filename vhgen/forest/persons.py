@@ -14,6 +14,8 @@ with a measurement (depth > 0) count. No threshold here was fitted to any data:
   when such people occur): the ranges of the issue;
 - a person is **found** when at least half of its visible pixels are called a person
   (:data:`FOUND_SHARE`, the rule of the issue); ``instance_recall`` = found / visible people;
+  per group bin, ``everyone_found`` = frames in which every visible person is found /
+  frames with someone visible (a frame of five people counts only with all five found);
 - a person **touches** another when one of its pixels is a 4-neighbour of another
   person's pixel in the instance image (with or without measurement: the sensor's
   shadow between two overlapping people does not part them);
@@ -114,11 +116,14 @@ class _Tally:
     called: int = 0
     called_person: int = 0  # called pixels that are a person (precision's numerator)
     called_other: int = 0  # called pixels that are no person
+    with_people: int = 0  # frames with someone visible
+    everyone_found: int = 0  # of those, frames whose every visible person is found
 
     def row(self, name: str, with_frames: bool, with_precision: bool) -> dict:
         r: dict = {"bin": name}
         if with_frames:
-            r["frames"] = self.frames
+            r.update({"frames": self.frames, "frames_everyone_found": self.everyone_found,
+                      "everyone_found": _ratio(self.everyone_found, self.with_people)})
         r.update({"people": self.people, "found": self.found,
                   "instance_recall": _ratio(self.found, self.people),
                   "pixels": self.pixels, "recall": _ratio(self.called, self.pixels)})
@@ -147,10 +152,13 @@ class PeopleScore:
         self.truth.add("instances" if has_instances else "labels")
         g = self.by_group.setdefault(fp.group, _Tally())
         tallies = [g, self.overall]
+        found_all = all(p["called"] >= FOUND_SHARE * p["pixels"] for p in fp.people)
         for t in tallies:
             t.frames += 1
             t.called_person += int(fp.called_person.sum())
             t.called_other += int(fp.called_other.sum())
+            t.with_people += int(bool(fp.people))
+            t.everyone_found += int(bool(fp.people) and found_all)
         for b, name in enumerate(DISTANCE_BINS):
             d = self.by_distance.setdefault(name, _Tally())
             d.called_person += int(fp.called_person[b])
@@ -203,16 +211,17 @@ def table(res: dict) -> str:
         return "-" if v is None else f"{v:.3f}"
 
     head = (f"{'frames':>7} {'people':>7} {'found':>6} {'inst.recall':>11} "
-            f"{'px recall':>9} {'px precision':>12}")
+            f"{'px recall':>9} {'px precision':>12} {'all found':>9}")
     lines = [f"person scores (called: {res['called']}; found: at least "
-             f"{res['found_share']:.0%} of a person's pixels called; truth: {res['truth']})"]
+             f"{res['found_share']:.0%} of a person's pixels called; all found: frames in "
+             f"which every person is; truth: {res['truth']})"]
 
     def block(title: str, rows: list[dict], suffix: str = "") -> None:
         lines.append(f"{title:<16} {head}")
         for r in rows:
             lines.append(f"{r['bin'] + suffix:<16} {r.get('frames', ''):>7} {r['people']:>7} "
                          f"{r['found']:>6} {f(r['instance_recall']):>11} {f(r['recall']):>9} "
-                         f"{f(r.get('precision')):>12}")
+                         f"{f(r.get('precision')):>12} {f(r.get('everyone_found')):>9}")
 
     block("distance", res["by_distance"], " m")
     block("contact", res["by_contact"])
