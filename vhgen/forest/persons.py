@@ -152,29 +152,28 @@ class PeopleScore:
         self.truth.add("instances" if has_instances else "labels")
         g = self.by_group.setdefault(fp.group, _Tally())
         tallies = [g, self.overall]
-        found_all = all(p["called"] >= FOUND_SHARE * p["pixels"] for p in fp.people)
+        found = [p["called"] >= FOUND_SHARE * p["pixels"] for p in fp.people]
         for t in tallies:
             t.frames += 1
             t.called_person += int(fp.called_person.sum())
             t.called_other += int(fp.called_other.sum())
-            t.with_people += int(bool(fp.people))
-            t.everyone_found += int(bool(fp.people) and found_all)
+            t.with_people += int(bool(found))
+            t.everyone_found += int(bool(found) and all(found))
         for b, name in enumerate(DISTANCE_BINS):
             d = self.by_distance.setdefault(name, _Tally())
             d.called_person += int(fp.called_person[b])
             d.called_other += int(fp.called_other[b])
-        for p in fp.people:
-            found = p["called"] >= FOUND_SHARE * p["pixels"]
+        for p, hit in zip(fp.people, found, strict=True):
             contact = "touching" if p["touching"] else "apart"
             for t in (g, self.overall, self.by_distance[distance_bin(p["distance_m"])],
                       self.by_contact.setdefault(contact, _Tally())):
                 t.people += 1
-                t.found += int(found)
+                t.found += int(hit)
                 t.pixels += p["pixels"]
                 t.called += p["called"]
             self.instances.append([where[0], where[1], p["instance"], p["pixels"],
                                    p["distance_m"], round(p["called"] / p["pixels"], 4),
-                                   bool(found), p["touching"]])
+                                   bool(hit), p["touching"]])
 
     def result(self) -> dict:
         """The scores as plain dicts (the ``people`` entry of ``forest eval``'s JSON)."""
