@@ -245,7 +245,13 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
     test = JobConfig.load(configs / "people_test.yaml")
     assert test.scene.people == (1, 6)
     assert test.camera.distance_m[0] <= 1.0 and test.camera.distance_m[1] >= 3.0
-    for name in ("people_room", "people_real", "people_groups", "people_far"):
-        train = JobConfig.load(configs / f"{name}.yaml")
-        assert not {Path(m).name for m in test.motions} & {Path(m).name for m in train.motions}
-        assert test.seed != train.seed
+    # the groups standing side by side (people_lineup_test.yaml): 4-6 in a line
+    lineup = JobConfig.load(configs / "people_lineup_test.yaml")
+    assert lineup.scene.people == (4, 6) and lineup.scene.lineup is not None
+    assert lineup.scene.lineup.share == 1.0
+    for held_out in (test, lineup):
+        for name in ("people_room", "people_real", "people_groups", "people_far"):
+            train = JobConfig.load(configs / f"{name}.yaml")
+            assert not ({Path(m).name for m in held_out.motions}
+                        & {Path(m).name for m in train.motions})
+            assert held_out.seed not in (train.seed, test.seed if held_out is lineup else -1)

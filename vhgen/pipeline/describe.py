@@ -14,7 +14,7 @@ from vhgen.pipeline.job import Job
 from vhgen.scene.background.people import layout_background
 from vhgen.scene.description import FrameDescription, Person
 from vhgen.scene.layout import SharedLayout, fill_shared, layout_scene, layout_shared
-from vhgen.scene.placement import Disc
+from vhgen.scene.placement import Disc, floor_outline
 
 # the scene stream: room and placements, spawned from the frame seed (see FrameDescription)
 _SCENE_STREAM = 0x5CE4E
@@ -71,9 +71,12 @@ class FrameDescriber:
         disc = None
         heads = posed_heads(body.rig, rot, root + offset)
         mats = matrices_from_heads(body.rig, rot, heads)
+        outline = None
         if ground or footprint:
             verts = skin_points(body.vertices, body.joints, body.weights, mats)
             lowest, cx, cz, radius = floor_footprint(verts)
+            if footprint and self.job.cfg.scene.lineup is not None:
+                outline = floor_outline(verts[:, [0, 2]])
             if ground and lowest < FLOOR_SNAP_M:
                 # moved up by -lowest: the same rotations, so every head and every bone's
                 # translation moves by the same vector (not posed again: 0.1 ms a person)
@@ -82,7 +85,8 @@ class FrameDescriber:
                 mats = mats.copy()
                 mats[:, 1, 3] -= lowest
             disc = Disc(cx, cz, radius)
-        return Person(instance, avatar_id, pose, mats, heads, offset, footprint=disc)
+        return Person(instance, avatar_id, pose, mats, heads, offset, footprint=disc,
+                      outline=outline)
 
     # -- vhgen.scene.layout.People: further people of a scene --------------------------
     @property

@@ -30,6 +30,9 @@ class Person:
     offset: np.ndarray
     placement: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4), after offset
     footprint: Disc | None = None  # bounding circle on the floor at placement time
+    # the body's convex outline on the floor, (K, 2) x, z in the world (only where
+    # placement needs it: scene.lineup stands people closer than their circles allow)
+    outline: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -29,8 +29,10 @@ from vhgen.scene.placement import (
     all_visible,
     is_free,
     place_anywhere,
+    place_beside,
     place_between,
     place_in_view,
+    turned,
     yaw_transform,
 )
 from vhgen.scene.props import parametric
@@ -38,6 +40,7 @@ from vhgen.scene.room import Room, sample_room, static_geometry
 from vhgen.scene.scene_config import (
     BEHIND_M,
     CAMERA_CLEARANCE_M,
+    LineupConfig,
     SceneConfig,
 )
 from vhgen.scene.solids import (
@@ -226,6 +229,7 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
     people = [first]
     discs = [first.footprint, Disc(float(eye[0]), float(eye[1]), CAMERA_CLEARANCE_M)]
     people_discs = [first.footprint]
+    outlines = [first.outline] if first.outline is not None else []
     dropped = 0
 
     def keeps_people_visible(d: Disc) -> bool:
@@ -235,6 +239,7 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
 
     n_people = (count if count is not None
                 else int(rng.integers(sc.people[0], sc.people[1] + 1)))
+    line = _Line.draw(rng, sc, eye, first)
     drawn = []
     for k in range(2, n_people + 1):
         if forced is None:
@@ -249,19 +254,79 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
             local = posed[k] = people_from.pose(k, a, pose)
         assert local.footprint is not None
         r = local.footprint.r
-        spot = place_in_view(rng, eye, forward, half_fov, reach, r, discs, room,
-                             accept=keeps_people_visible)
+        spot = None
+        if line is not None:
+            assert local.outline is not None and first.outline is not None
+            c = np.array([local.footprint.x, local.footprint.z])
+            # facing the camera, turned by up to facing_deg (the heading's draw scaled:
+            # one draw either way)
+            turn = (heading / np.pi * np.deg2rad(line.cfg.facing_deg)
+                    - _bearing(local.bones[0, [0, 2], 2]))
+
+            def facing(xz: np.ndarray, turn: float = turn) -> float:
+                return _bearing(eye - xz) + turn
+
+            beside = place_beside(rng, eye, forward, half_fov, tuple(line.ends), line.across,
+                                  local.outline - c, r, facing, line.cfg.gap_m,
+                                  line.cfg.depth_m, outlines, discs[1:2], room,
+                                  accept=keeps_people_visible)
+            if beside is not None:
+                spot, heading = beside.disc, beside.heading
+                line.ends[beside.side] = (spot, beside.outline)
+        if spot is None:
+            spot = place_in_view(rng, eye, forward, half_fov, reach, r, discs, room,
+                                 accept=keeps_people_visible)
         if spot is None:
             dropped += 1
             continue
         # rotate about the footprint's centre, then move that centre onto the spot
         c = np.array([local.footprint.x, 0.0, local.footprint.z])
         t = yaw_transform(heading, spot.x, spot.z) @ yaw_transform(0.0, -c[0], -c[2])
+        outline = None
+        if local.outline is not None:
+            outline = turned(local.outline - c[[0, 2]], heading) + np.array([spot.x, spot.z])
+            outlines.append(outline)
         people.append(Person(len(people) + 1, a, pose, t @ local.bones,
-                             local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot))
+                             local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot,
+                             outline))
         discs.append(spot)
         people_discs.append(spot)
     return _People(rng, room, people, discs, drawn, dropped)
+
+
+def _bearing(v: np.ndarray) -> float:
+    """The yaw (radians about +y) that turns +z towards the floor direction ``v`` (x, z),
+    as :func:`yaw_transform` turns."""
+    return float(np.arctan2(v[0], v[1]))
+
+
+@dataclass
+class _Line:
+    """The line of a frame whose people stand side by side (``scene.lineup``): its left
+    and right end (a person's footprint and outline, the first person's to begin with)
+    and its direction across the view."""
+
+    cfg: LineupConfig
+    ends: list[tuple[Disc, np.ndarray]]
+    across: np.ndarray
+
+    @staticmethod
+    def draw(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
+             first: Person) -> _Line | None:
+        """The frame's line, or None (no ``scene.lineup``, or a frame outside its share).
+        Two draws when ``scene.lineup`` is set (in line or not, the tilt), none
+        otherwise, so scenes without it keep their streams."""
+        if sc.lineup is None:
+            return None
+        u = rng.uniform(size=2)
+        if u[0] >= sc.lineup.share:
+            return None
+        assert first.footprint is not None and first.outline is not None
+        end = (first.footprint, first.outline)
+        sight = np.array([first.footprint.x, first.footprint.z]) - eye
+        tilt = (2 * u[1] - 1) * np.deg2rad(sc.lineup.tilt_deg)
+        a = _bearing(sight) + np.pi / 2 + tilt
+        return _Line(sc.lineup, [end, end], np.array([np.sin(a), np.cos(a)]))
 
 
 # -- a layout consecutive frames share (scene.layout_frames) ------------------------------

@@ -43,6 +43,22 @@ class RoomConfig:
 
 
 @dataclass(frozen=True)
+class LineupConfig:
+    """People standing side by side, as a group stands for a photo or a talk: in a share
+    of the frames (``share``), every further person stands beside the line's left or
+    right end, ``gap_m`` from its neighbour's footprint, moved up to ``depth_m`` towards
+    or away from the camera, turned to face the camera within ``facing_deg``; the line
+    runs across the view, turned by up to ``tilt_deg``. A person with no room at either
+    end is placed as without a line (anywhere in view)."""
+
+    share: float = 1.0
+    gap_m: tuple[float, float] = (0.0, 0.25)
+    depth_m: float = 0.3
+    facing_deg: float = 30.0
+    tilt_deg: float = 15.0
+
+
+@dataclass(frozen=True)
 class PropsConfig:
     """Props per frame: how many (uniform integer in ``count``), of which kinds (the
     parametric ones by name, plus mesh files loaded at config time), and ``occlusion``:
@@ -157,6 +173,8 @@ class SceneConfig:
     # standing in a furnished room while people come and go; see
     # vhgen.scene.layout.layout_shared); 1: every frame lays out its own
     layout_frames: int = 1
+    # people side by side in a share of the frames (None: never; see LineupConfig)
+    lineup: LineupConfig | None = None
 
     @cached_property
     def clutter_roles(self) -> dict[str, np.ndarray]:
@@ -398,11 +416,31 @@ def _check_clutter_fits(cfg: ClutterConfig, room: RoomConfig, people: tuple[int,
                           f"lower the count or enlarge scene.room")
 
 
+def _lineup(d: Any, src) -> LineupConfig:
+    """``scene.lineup``: true (the defaults) or a mapping of :class:`LineupConfig`'s
+    fields."""
+    if d is True:
+        d = {}
+    if not isinstance(d, dict):
+        raise ConfigError(src, "scene.lineup", f"must be a mapping (or true/false), got {d!r}")
+    check_keys(d, {"share", "gap_m", "depth_m", "facing_deg", "tilt_deg"}, set(), src,
+               "scene.lineup.")
+    df = LineupConfig()
+    p = "scene.lineup."
+    return LineupConfig(
+        share=number(d, "share", src, p, lo=0.0, hi=1.0, default=df.share),
+        gap_m=number_range(d, "gap_m", src, p, df.gap_m, lo=0.0, hi=2.0),
+        depth_m=number(d, "depth_m", src, p, lo=0.0, hi=2.0, default=df.depth_m),
+        facing_deg=number(d, "facing_deg", src, p, lo=0.0, hi=180.0, default=df.facing_deg),
+        tilt_deg=number(d, "tilt_deg", src, p, lo=0.0, hi=60.0, default=df.tilt_deg))
+
+
 def parse_scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
     """The ``scene:`` section; checks at load time that a room can hold the people, the
     props and the camera at its farthest distance."""
     check_keys(d, {"floor", "room", "people", "props", "min_visible_fraction",
-                   "backgrounds", "clutter", "layout_frames"}, set(), src, "scene.")
+                   "backgrounds", "clutter", "layout_frames", "lineup"}, set(), src,
+               "scene.")
     floor = d.get("floor", False)
     if not isinstance(floor, bool):
         raise ConfigError(src, "scene.floor", f"must be true or false, got {floor!r}")
@@ -469,11 +507,20 @@ def parse_scene(d: dict, src, camera: CameraConfig) -> SceneConfig:
         raise ConfigError(src, "scene.layout_frames", "frames share a room, props and "
                           "clutter: it needs scene.room or scene.props, and no "
                           "scene.backgrounds (a real background is already shared)")
+    lineup = None
+    if d.get("lineup") not in (None, False):
+        lineup = _lineup(d["lineup"], src)
+        why = ("scene.people must allow more than one person" if people[1] < 2 else
+               "real backgrounds place their people themselves" if backgrounds else
+               "frames that share a layout keep places, not lines (layout_frames: 1)"
+               if layout_frames > 1 else "")
+        if why:
+            raise ConfigError(src, "scene.lineup", f"people side by side: {why}")
     scene = SceneConfig(floor=floor, room=room, people=people, props=props,
                         min_visible_fraction=number(d, "min_visible_fraction", src, "scene.",
                                                   lo=0.0, hi=1.0, default=0.5),
                         backgrounds=backgrounds, clutter=clutter,
-                        layout_frames=int(layout_frames))
+                        layout_frames=int(layout_frames), lineup=lineup)
     room_for = MAX_SCENE_CLASSES - len(SCENE_CLASSES)
     if len(scene.class_names) - len(SCENE_CLASSES) > room_for:
         raise ConfigError(src, "scene.backgrounds" if backgrounds else "scene.clutter",
