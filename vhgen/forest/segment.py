@@ -19,8 +19,14 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    or a floor's borders are corners and the nearer things in front of them; and unless
    the forest calls at least ``max_plane_body`` of its pixels a body part (a person's
    flat front, a coat or a torso with the arms raised, is a plane a metre across too,
-   and the forest, trained to call walls and floors background, says whose it is). The
-   plane most nearly level below the camera is the **floor**;
+   and the forest, trained to call walls and floors background, says whose it is). Of a
+   background plane, a piece (8-connected) whose border steps back to something farther
+   more often than forward to something nearer stays (``keep_fronts``): people side by
+   side facing the camera put the middles of their chests on one plane wider than a
+   metre, each piece a torso between the gaps beside it, with the people's own arms and
+   legs around it, no occluding edge; a wall's or floor's pieces are bounded by the
+   nearer things before them. The plane most nearly level below the camera is the
+   **floor**;
 2. **clusters**: 4-connected components of the other valid pixels, two neighbours joined
    when their depths differ by less than ``jump_m`` at 1 m (times z, a step the sensor
    sees as a discontinuity);
@@ -110,6 +116,9 @@ class Segmenter:
     # a plane the forest calls mostly a body part is a person's front, not background (the
     # majority; None: the forest has no say in step 1)
     max_plane_body: float | None = 0.5
+    # the pieces of a background plane that stand in front of their surroundings are not
+    # background (people side by side facing the camera: :meth:`_fronts`)
+    keep_fronts: bool = True
     min_pixels: int = 300
     min_extent_m: float = 0.2
     max_extent_m: float = 2.4
@@ -202,6 +211,8 @@ class Segmenter:
                 more = np.zeros(valid.shape, bool)
                 more[held] = _on_plane(q, self.plane_tolerance(q[:, 2]), normal, offset)
                 mask |= more
+            if self.keep_fronts:
+                mask &= ~self._fronts(mask, valid, points[..., 2])
             on_plane |= mask
             # the floor: below the camera, its normal near the camera's up (-y)
             up = normal if normal[1] < 0 else -normal
@@ -210,6 +221,35 @@ class Segmenter:
                 best_level = -up[1]
                 floor = np.array([*up, off])
         return on_plane, floor
+
+    def _fronts(self, mask: np.ndarray, valid: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(H, W) bool: the pieces of a background plane's ``mask`` that stand in front of
+        what surrounds them. People standing side by side facing the camera put their
+        chests on one plane a metre or more across, which the plane test takes for a
+        wall; with the forest's vote weak on torsos (a real torso's more than a vhgen
+        one's) nothing else keeps them. A piece (8-connected, at least ``min_pixels``) is
+        a front when more of its border steps back to something farther than steps
+        forward to something nearer (:func:`_outline_share`, the same depth step): a
+        torso between the gaps beside it, not a wall or floor, which is bounded by the
+        nearer things standing before it, corners and the frame."""
+        from scipy import ndimage
+
+        lab, n = ndimage.label(mask, structure=np.ones((3, 3), bool))
+        out = np.zeros(mask.shape, bool)
+        for k, sl in enumerate(ndimage.find_objects(lab), start=1):
+            if sl is None:
+                continue
+            # the piece's box and one pixel around it: its border pairs
+            box = tuple(slice(max(s.start - 1, 0), s.stop + 1) for s in sl)
+            piece = lab[box] == k
+            if piece.sum() < self.min_pixels:
+                continue
+            far = _outline_share(piece, valid[box], z[box], self.jump_m, unmeasured=False)
+            near = _outline_share(piece, valid[box], z[box], self.jump_m, unmeasured=False,
+                                  nearer=True)
+            if far > near:
+                out[box] |= piece
+        return out
 
     def clusters(self, depth_m: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, int]:
         """Components of the ``keep`` pixels, 4-neighbours joined across depth steps
