@@ -19,7 +19,6 @@ import numpy as np
 
 from vhgen.scene.room import Room
 from vhgen.scene.scene_config import CAMERA_CLEARANCE_M
-from vhgen.scene.solids import separated
 
 PLACEMENT_TRIES = 30
 CANDIDATES = 8  # spots drawn per try: screened for room and overlap together (cheap),
@@ -209,19 +208,46 @@ def place_beside(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.nd
         out = turned(shape, heading)
         s = np.linspace(0.0, reach, steps + 1)
         centres = (np.array([end.x, end.z]) + move)[None] + sign * s[:, None] * across
-        polys = out[None] + centres[:, None]
         ok = np.ones(len(s), bool)
         for q in people:
-            ok &= separated(polys, q, gap)
+            ok &= _clear_of(out, centres, q, radius, gap)
         if not ok.any():
             continue
         k = int(np.argmax(ok))
         d = Disc(float(centres[k, 0]), float(centres[k, 1]), radius)
-        if (_in_view(eye_xz, forward_xz, half_fov_rad, polys[k])
+        poly = out + centres[k]
+        if (_in_view(eye_xz, forward_xz, half_fov_rad, poly)
                 and bool(_free_many(centres[k][None], radius, others, room)[0])
                 and (accept is None or accept(d))):
-            return Beside(d, heading, side, polys[k])
+            return Beside(d, heading, side, poly)
     return None
+
+
+def _clear_of(shape: np.ndarray, centres: np.ndarray, q: np.ndarray, radius: float,
+              gap: float) -> np.ndarray:
+    """(K,) bool: the convex polygon ``shape`` (P, 2, about the origin, within
+    ``radius`` of it) moved to each of ``centres`` (K, 2) lies at least ``gap`` from the
+    convex polygon ``q`` (Q, 2) along one of their edge normals (the separating-axis test
+    of :func:`vhgen.scene.solids.separated`; the moved polygons share their normals, so
+    each axis is projected once). Centres whose circle clears ``q``'s circle need no
+    axes."""
+    cq = q.mean(0)
+    far = np.hypot(*(centres - cq).T) >= radius + float(np.hypot(*(q - cq).T).max()) + gap
+    if far.all():
+        return far
+    axes = np.concatenate([_unit_normals(shape), _unit_normals(q)])
+    ps, pq, pc = shape @ axes.T, q @ axes.T, centres @ axes.T  # (P, A), (Q, A), (K, A)
+    apart = ((ps.min(0) + pc - pq.max(0) >= gap) | (pq.min(0) - ps.max(0) - pc >= gap))
+    return far | apart.any(1)
+
+
+def _unit_normals(poly: np.ndarray) -> np.ndarray:
+    """(P, 2) unit normals of a polygon's edges (degenerate edges left out)."""
+    e = np.roll(poly, -1, 0) - poly
+    n = np.stack([e[:, 1], -e[:, 0]], 1)
+    length = np.hypot(n[:, 0], n[:, 1])
+    keep = length > 1e-12
+    return n[keep] / length[keep, None]
 
 
 def _in_view(eye_xz: np.ndarray, forward_xz: np.ndarray, half_fov_rad: float,
