@@ -13,6 +13,7 @@ from vhgen.body.skinning import skin_vertices
 from vhgen.errors import ConfigError
 from vhgen.job_config import JobConfig
 from vhgen.scene.placement import Disc, place_beside
+from vhgen.scene.solids import separated
 
 SCENE = """
 name: t
@@ -74,19 +75,8 @@ def _further_people(d, n: int):
                             for j, o in enumerate(desc.people) if j != k))
         for i in range(len(hulls)):
             for j in range(i):
-                overlaps += not _apart(hulls[i], hulls[j])
+                overlaps += not separated(hulls[i][None], hulls[j], 0.0)[0]
     return np.array(errors), np.array(gaps), overlaps
-
-
-def _apart(a: np.ndarray, b: np.ndarray) -> bool:
-    """Separating-axis test for two convex polygons."""
-    for poly in (a, b):
-        for e in np.roll(poly, -1, 0) - poly:
-            n = np.array([-e[1], e[0]])
-            pa, pb = a @ n, b @ n
-            if pa.max() < pb.min() or pb.max() < pa.min():
-                return True
-    return False
 
 
 def test_lineup_stands_people_side_by_side_facing_the_camera(tmp_path, asset_dir):

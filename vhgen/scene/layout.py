@@ -254,10 +254,10 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
             local = posed[k] = people_from.pose(k, a, pose)
         assert local.footprint is not None
         r = local.footprint.r
-        spot = None
+        spot, outline = None, None
+        centre = np.array([local.footprint.x, local.footprint.z])
         if line is not None:
             assert local.outline is not None and first.outline is not None
-            c = np.array([local.footprint.x, local.footprint.z])
             # facing the camera, turned by up to facing_deg (the heading's draw scaled:
             # one draw either way)
             turn = (heading / np.pi * np.deg2rad(line.cfg.facing_deg)
@@ -267,12 +267,12 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
                 return _bearing(eye - xz) + turn
 
             beside = place_beside(rng, eye, forward, half_fov, tuple(line.ends), line.across,
-                                  local.outline - c, r, facing, line.cfg.gap_m,
+                                  local.outline - centre, r, facing, line.cfg.gap_m,
                                   line.cfg.depth_m, outlines, discs[1:2], room,
                                   accept=keeps_people_visible)
             if beside is not None:
-                spot, heading = beside.disc, beside.heading
-                line.ends[beside.side] = (spot, beside.outline)
+                spot, heading, outline = beside.disc, beside.heading, beside.outline
+                line.ends[beside.side] = (spot, outline)
         if spot is None:
             spot = place_in_view(rng, eye, forward, half_fov, reach, r, discs, room,
                                  accept=keeps_people_visible)
@@ -280,11 +280,10 @@ def _layout_people(rng: np.random.Generator, sc: SceneConfig, eye: np.ndarray,
             dropped += 1
             continue
         # rotate about the footprint's centre, then move that centre onto the spot
-        c = np.array([local.footprint.x, 0.0, local.footprint.z])
-        t = yaw_transform(heading, spot.x, spot.z) @ yaw_transform(0.0, -c[0], -c[2])
-        outline = None
+        t = yaw_transform(heading, spot.x, spot.z) @ yaw_transform(0.0, -centre[0], -centre[1])
         if local.outline is not None:
-            outline = turned(local.outline - c[[0, 2]], heading) + np.array([spot.x, spot.z])
+            if outline is None:  # placed without the line: its outline follows
+                outline = turned(local.outline - centre, heading) + np.array([spot.x, spot.z])
             outlines.append(outline)
         people.append(Person(len(people) + 1, a, pose, t @ local.bones,
                              local.joints @ t[:3, :3].T + t[:3, 3], local.offset, t, spot,

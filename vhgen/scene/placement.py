@@ -19,6 +19,7 @@ import numpy as np
 
 from vhgen.scene.room import Room
 from vhgen.scene.scene_config import CAMERA_CLEARANCE_M
+from vhgen.scene.solids import edge_normals
 
 PLACEMENT_TRIES = 30
 CANDIDATES = 8  # spots drawn per try: screened for room and overlap together (cheap),
@@ -216,7 +217,7 @@ def place_beside(rng: np.random.Generator, eye_xz: np.ndarray, forward_xz: np.nd
         k = int(np.argmax(ok))
         d = Disc(float(centres[k, 0]), float(centres[k, 1]), radius)
         poly = out + centres[k]
-        if (_in_view(eye_xz, forward_xz, half_fov_rad, poly)
+        if (_outline_in_view(eye_xz, forward_xz, half_fov_rad, poly)
                 and bool(_free_many(centres[k][None], radius, others, room)[0])
                 and (accept is None or accept(d))):
             return Beside(d, heading, side, poly)
@@ -235,22 +236,14 @@ def _clear_of(shape: np.ndarray, centres: np.ndarray, q: np.ndarray, radius: flo
     far = np.hypot(*(centres - cq).T) >= radius + float(np.hypot(*(q - cq).T).max()) + gap
     if far.all():
         return far
-    axes = np.concatenate([_unit_normals(shape), _unit_normals(q)])
+    axes = np.concatenate([edge_normals(shape), edge_normals(q)])
+    axes = axes[(axes != 0).any(1)]  # a repeated corner's edge proves nothing
     ps, pq, pc = shape @ axes.T, q @ axes.T, centres @ axes.T  # (P, A), (Q, A), (K, A)
     apart = ((ps.min(0) + pc - pq.max(0) >= gap) | (pq.min(0) - ps.max(0) - pc >= gap))
     return far | apart.any(1)
 
 
-def _unit_normals(poly: np.ndarray) -> np.ndarray:
-    """(P, 2) unit normals of a polygon's edges (degenerate edges left out)."""
-    e = np.roll(poly, -1, 0) - poly
-    n = np.stack([e[:, 1], -e[:, 0]], 1)
-    length = np.hypot(n[:, 0], n[:, 1])
-    keep = length > 1e-12
-    return n[keep] / length[keep, None]
-
-
-def _in_view(eye_xz: np.ndarray, forward_xz: np.ndarray, half_fov_rad: float,
+def _outline_in_view(eye_xz: np.ndarray, forward_xz: np.ndarray, half_fov_rad: float,
              outline: np.ndarray) -> bool:
     """Whether every point of a floor outline (K, 2) lies in front of the camera inside
     the horizontal field of view."""

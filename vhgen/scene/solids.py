@@ -50,7 +50,7 @@ class Solid:
             d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]))))
         object.__setattr__(self, "box", np.concatenate([np.minimum.reduce(p, 0),
                                                         np.maximum.reduce(p, 0)]))
-        object.__setattr__(self, "normals", _normals(p))
+        object.__setattr__(self, "normals", edge_normals(p))
 
 
 def disc_polygon(x: float, z: float, r: float, sides: int = DISC_SIDES) -> np.ndarray:
@@ -85,7 +85,7 @@ _FLIP = np.array([1.0, -1.0])  # an edge (x, z), swapped, to its normal (z, -x)
 _FLIP.setflags(write=False)
 
 
-def _normals(poly: np.ndarray) -> np.ndarray:
+def edge_normals(poly: np.ndarray) -> np.ndarray:
     """(..., P, 2) unit edge normals of polygons (..., P, 2) (degenerate edges: 0)."""
     e = np.concatenate([poly[..., 1:, :], poly[..., :1, :]], -2) - poly
     n = e[..., ::-1] * _FLIP
@@ -100,8 +100,8 @@ def separated(a: np.ndarray, b: np.ndarray, gap: float,
     known)."""
     a = np.asarray(a, np.float64)
     k = len(a)
-    nb = _normals(b) if b_normals is None else b_normals
-    axes = np.concatenate([_normals(a), np.broadcast_to(nb, (k,) + nb.shape)], 1)
+    nb = edge_normals(b) if b_normals is None else b_normals
+    axes = np.concatenate([edge_normals(a), np.broadcast_to(nb, (k,) + nb.shape)], 1)
     pa = np.einsum("kpd,kad->kap", a, axes)
     pb = np.einsum("qd,kad->kaq", b, axes)
     sep = ((pa.min(-1) - pb.max(-1) >= gap) | (pb.min(-1) - pa.max(-1) >= gap))
