@@ -75,12 +75,23 @@ def vhgen_home() -> Path:
 
 
 def numba_cache_dir() -> Path:
-    """Where numba keeps its compiled kernels (``cache=True``): ``$VHGEN_HOME/cache/numba``.
+    """Where numba keeps its compiled kernels (``cache=True``):
+    ``$VHGEN_HOME/cache/numba/<numba version>``.
 
     Not next to the sources: an installed package's folder may be read-only, and a
-    per-user cache is shared by every process of a job (Ray actors included).
+    per-user cache is shared by every process of a job (Ray actors included). One folder
+    per numba version: environments with different numbas (the dependency floors beside
+    the newest versions) share ``$VHGEN_HOME``, and a kernel one's LLVM wrote cannot be
+    read by another's (numba keeps its version in a cache index, but an index and its
+    data files rewritten by two versions at once do not match).
     """
-    return vhgen_home() / "cache" / "numba"
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        tag = version("numba")
+    except PackageNotFoundError:
+        tag = "none"
+    return vhgen_home() / "cache" / "numba" / tag
 
 
 # before any vhgen module imports numba (this module is the package's first import):
