@@ -236,7 +236,7 @@ def test_eval_flag_errors_are_one_line(tmp_path, capsys, boxes_store):
 def test_people_test_config_is_held_out_and_covers_the_bins():
     """configs/forest/people_test.yaml: groups of 1-6, the first person 1-4 m away (the
     others up to 1.5 m further), and no motion or seed of the training configs (the
-    forests' and the person stage's)."""
+    forests' and the person stage's, and the lines tried as training data)."""
     from pathlib import Path
 
     from vhgen.job_config import JobConfig
@@ -251,7 +251,8 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
     assert lineup.scene.lineup.share == 1.0
     assert lineup.seed != test.seed
     for held_out in (test, lineup):
-        for name in ("people_room", "people_real", "people_groups", "people_far"):
+        for name in ("people_room", "people_real", "people_groups", "people_far",
+                     "people_lines"):
             train = JobConfig.load(configs / f"{name}.yaml")
             assert not ({Path(m).name for m in held_out.motions}
                         & {Path(m).name for m in train.motions})
