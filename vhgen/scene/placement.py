@@ -244,7 +244,7 @@ def _clear_of(shape: np.ndarray, centres: np.ndarray, q: np.ndarray, radius: flo
 
 
 def _outline_in_view(eye_xz: np.ndarray, forward_xz: np.ndarray, half_fov_rad: float,
-             outline: np.ndarray) -> bool:
+                     outline: np.ndarray) -> bool:
     """Whether every point of a floor outline (K, 2) lies in front of the camera inside
     the horizontal field of view."""
     d = outline - eye_xz
