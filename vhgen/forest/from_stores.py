@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -148,10 +149,14 @@ def person_stage_frames(forest: Forest, stores: list[str], count: int,
 
 
 def stage_rows(seg: Segmenter, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
-               truth: np.ndarray, without_floor: bool = True) -> tuple[np.ndarray, np.ndarray]:
+               truth: np.ndarray, without_floor: bool = True, num_labels: int = 0
+               ) -> tuple[np.ndarray, ...]:
     """The person stage's training rows of one frame: the features of its candidates
     (:meth:`Segmenter.describe` with the forest's ``labels``) and whether each is a person
-    (most of its pixels a person's in ``truth``). With ``without_floor``, a frame whose
+    (most of its pixels a person's in ``truth``); with ``num_labels`` (the forest's
+    classes) also their :meth:`Segmenter.part_histograms`, from which the stage learns
+    where each part lies in a person (the part features are 0 in the rows until
+    :func:`with_part_features` fills them). With ``without_floor``, a frame whose
     floor was found gives each candidate twice, also described as if no floor had been
     found: the stage then learns to decide without a floor from every kind of scene, not
     only from the frames where none is found (in the recommended stores, only the real
@@ -163,13 +168,31 @@ def stage_rows(seg: Segmenter, depth_mm: np.ndarray, intr: Intrinsics, labels: n
     person = np.bincount(cand.comp.reshape(-1), weights=(truth > 0).reshape(-1),
                          minlength=n) >= 0.5 * size
     table = seg.table_of(cand.comp, cand.count, cand.points, labels, cand.keep)
-    xs, ys = [], []
+    xs, ys, hs = [], [], []
     for use in (True, False) if (cand.floor is not None and without_floor) else (True,):
         x = seg.describe(cand, depth_mm, intr, labels, use_floor=use, table=table)
         ok = ~np.isnan(x).any(1)
         xs.append(x[ok])
         ys.append(person[ok])
+        if num_labels:
+            hs.append(seg.part_histograms(cand, labels, num_labels, use_floor=use)[ok])
+    if num_labels:
+        return np.concatenate(xs), np.concatenate(ys), np.concatenate(hs)
     return np.concatenate(xs), np.concatenate(ys)
+
+
+def with_part_features(x: np.ndarray, y: np.ndarray, hist: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``x`` of :func:`stage_rows` with their part features filled from their
+    histograms ``hist``, and the parts' typical heights learned from the rows that are
+    people (``y``): (x, part_heights)."""
+    from vhgen.forest.segment import FEATURES, learn_part_heights, part_features
+
+    heights = learn_part_heights(hist, y)
+    x = np.array(x, np.float64)
+    x[:, FEATURES.index("part_order"):FEATURES.index("bottom_parts") + 1] = part_features(
+        hist, heights)
+    return x, heights
 
 
 def cropped_view(depth_mm: np.ndarray, truth: np.ndarray, rng: np.random.Generator
@@ -189,7 +212,7 @@ def cropped_view(depth_mm: np.ndarray, truth: np.ndarray, rng: np.random.Generat
 
 def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                        trees: int = 200, seed: int = 0, without_floor: bool = True,
-                       cropped: bool = True, cut_out: bool = False,
+                       cropped: bool = True, cut_out: bool = False, part_order: bool = False,
                        progress: Callable[[str], None] | None = None) -> PersonStage:
     """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
@@ -207,8 +230,12 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     removed before the forest sees them; and of its :func:`lone_things_view` (its
     free-standing things alone, none a person), so that a thing with nothing around it is
     not a person for being alone. Such a stage finds more of those people
-    (docs/forest.md)."""
-    from vhgen.forest.segment import FEATURES, Segmenter
+    (docs/forest.md). ``part_order`` (opt-in): the stage also reads where the forest's
+    parts lie in a candidate (:data:`vhgen.forest.segment.PART_FEATURES`), with each
+    part's typical height in a person learned from these candidates and kept in the
+    stage: more of the far people found and fewer things called people, fewer of a line
+    of people side by side (docs/forest.md)."""
+    from vhgen.forest.segment import FEATURES, PART_FEATURES, Segmenter
     from vhgen.forest.trees import predictors_at_focal
 
     chosen = person_stage_frames(forest, stores, frames, seed)
@@ -224,7 +251,7 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         return np.stack([by_store[p].predict(d[k]) for k, (p, _, _) in enumerate(part)])
 
     seg = Segmenter()
-    xs, ys = [], []
+    xs, ys, hs = [], [], []
     t0 = time.perf_counter()
     for s in range(0, len(chosen), 16):
         part = chosen[s:s + 16]
@@ -248,10 +275,12 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
             views.append((tdepth, predict(tdepth, part), np.zeros_like(truth)))
         for vd, vl, vt in views:
             for i, (path, _, _) in enumerate(part):
-                x, y = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
-                                  without_floor)
-                xs.append(x)
-                ys.append(y)
+                rows = stage_rows(seg, vd[i], infos[path].intrinsics, vl[i], vt[i],
+                                  without_floor, forest.num_classes if part_order else 0)
+                xs.append(rows[0])
+                ys.append(rows[1])
+                if part_order:
+                    hs.append(rows[2].astype(np.float32))
         if progress is not None:
             progress(f"person stage: candidates of {min(s + 16, len(chosen))}/{len(chosen)} "
                      "frames")
@@ -260,7 +289,14 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         raise ForestError(f"{stores[0]}: the person stage needs candidates that are people "
                           f"and candidates that are not; {len(chosen)} frames gave "
                           f"{int(y_all.sum())} people among {len(y_all)} candidates")
-    stage = PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed)
+    if part_order:
+        x_all, heights = with_part_features(x_all, y_all, np.concatenate(hs))
+        stage = replace(PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed),
+                        part_heights=heights)
+    else:
+        names = tuple(f for f in FEATURES if f not in PART_FEATURES)
+        stage = PersonStage.fit(x_all[:, [FEATURES.index(f) for f in names]], y_all, names,
+                                trees=trees, seed=seed)
     log.info("person stage: %d candidates (%d people) of %d frames, %.1f s", len(y_all),
              int(y_all.sum()), len(chosen), time.perf_counter() - t0)
     return stage

@@ -31,7 +31,9 @@ class PersonStage:
     """Extremely randomized binary trees over candidate features (NaN rows: never a
     person). Arrays per node, trees concatenated: ``feature`` (-1 at a leaf),
     ``threshold``, ``left``/``right`` (absolute node ids), ``prob`` (the leaf's weighted
-    person share), ``roots`` (one node id per tree)."""
+    person share), ``roots`` (one node id per tree). ``part_heights``: the typical height
+    of each of the part forest's labels in a person, learned with the trees
+    (:func:`vhgen.forest.segment.learn_part_heights`; None in a stage of before them)."""
 
     feature: np.ndarray
     threshold: np.ndarray
@@ -40,6 +42,7 @@ class PersonStage:
     prob: np.ndarray
     roots: np.ndarray
     features: tuple[str, ...]
+    part_heights: np.ndarray | None = None
 
     @classmethod
     def fit(cls, x: np.ndarray, y: np.ndarray, features: tuple[str, ...], *,
@@ -99,7 +102,9 @@ class PersonStage:
         return {f"{prefix}feature": self.feature, f"{prefix}threshold": self.threshold,
                 f"{prefix}left": self.left, f"{prefix}right": self.right,
                 f"{prefix}prob": self.prob, f"{prefix}roots": self.roots,
-                f"{prefix}names": np.asarray(self.features)}
+                f"{prefix}names": np.asarray(self.features),
+                **({} if self.part_heights is None else
+                   {f"{prefix}part_heights": np.asarray(self.part_heights, np.float64)})}
 
     @classmethod
     def from_arrays(cls, arrays: dict, prefix: str) -> PersonStage:
@@ -108,8 +113,10 @@ class PersonStage:
         def get(key: str) -> np.ndarray:
             return np.asarray(arrays[f"{prefix}{key}"])
 
+        heights = arrays.get(f"{prefix}part_heights")
         return cls(get("feature"), get("threshold"), get("left"), get("right"), get("prob"),
-                   get("roots"), names)
+                   get("roots"), names,
+                   None if heights is None else np.asarray(heights, np.float64))
 
 
 def _grow(x: np.ndarray, y: np.ndarray, w: np.ndarray, idx: np.ndarray, nodes: dict,

@@ -82,7 +82,16 @@ from vhgen.geom.planes import triples as _triples
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
             "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
             "in_front", "at_image_edge", "body", "coherence", "parts", "behind",
-            "column_height_m", "column_share")
+            "column_height_m", "column_share", "part_order", "top_parts", "bottom_parts")
+# where the forest's parts lie in the candidate: read by stages trained with them
+# (forest person-stage --part-order), 0 for others
+PART_FEATURES = ("part_order", "top_parts", "bottom_parts")
+# the candidate's height (2nd to 98th percentile) in tenths, for where the forest's parts
+# lie in it (Segmenter.part_histograms); its top fifth and lowest 30% for top_parts and
+# bottom_parts
+HEIGHT_BINS = 10
+TOP_BINS = 8
+BOTTOM_BINS = 3
 
 
 @dataclass(frozen=True)
@@ -332,18 +341,19 @@ class Segmenter:
                 "coherence": same / np.maximum(pairs, 1), "parts": parts,
                 "extent_m": extent}
 
-    def features(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def features(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
+                 part_heights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The candidates of a frame and what the person stage decides on: (H, W) int32
         candidate ids (0 = none) and (n + 1, len(FEATURES)) float64, as :meth:`describe`
-        says."""
+        says (``part_heights`` as there)."""
         depth = np.asarray(depth_mm)
         cand = self.candidates(depth, intr, labels)
-        return cand.comp, self.describe(cand, depth, intr, labels)
+        return cand.comp, self.describe(cand, depth, intr, labels, part_heights=part_heights)
 
     def describe(self, cand: Candidates, depth_mm: np.ndarray, intr: Intrinsics,
                  labels: np.ndarray, use_floor: bool = True,
-                 table: dict[str, np.ndarray] | None = None) -> np.ndarray:
+                 table: dict[str, np.ndarray] | None = None,
+                 part_heights: np.ndarray | None = None) -> np.ndarray:
         """What the person stage decides on, per candidate of ``cand``: (n + 1,
         len(FEATURES)) float64 (row 0 and the rows of candidates below ``min_pixels`` are
         NaN: never a person). Heights are above the floor (without one, or without
@@ -360,7 +370,10 @@ class Segmenter:
         to the highest point of the candidates whose centres on the floor lie within
         ``column_m`` of this one's (itself and smaller ones included), and
         ``column_share`` its share of their pixels: a piece of a person seen past someone
-        in front is short, but its column is as tall as the person.
+        in front is short, but its column is as tall as the person. ``part_order``,
+        ``top_parts`` and ``bottom_parts`` say whether the forest's parts lie where they
+        lie on a person (:func:`part_features`, given the stage's ``part_heights``; 0
+        without them).
         ``use_floor=False`` describes the candidates as a frame whose floor was not found
         would (how the person stage learns to decide without one); ``table``: their
         :meth:`table_of`, when already computed (it does not depend on the floor)."""
@@ -394,6 +407,9 @@ class Segmenter:
                            for k in range(2)], 1) / np.maximum(size, 1)[:, None]
         top = np.full(n, -np.inf)
         bottom = np.full(n, np.inf)
+        labels = np.asarray(labels)
+        parts = (None if part_heights is None else
+                 np.zeros((n, len(part_heights), HEIGHT_BINS)))
         np.maximum.at(top, ids, h_all)
         np.minimum.at(bottom, ids, h_all)
         for c, sl in enumerate(ndimage.find_objects(comp), start=1):
@@ -427,8 +443,10 @@ class Segmenter:
                       table["body"][c], table["coherence"][c], float(table["parts"][c]),
                       _outline_share(comp[around] == c, valid[around], z_img[around],
                                      self.jump_m, unmeasured=False, nearer=True),
-                      0.0, 0.0)  # the column's two, below
+                      0.0, 0.0, 0.0, 0.0, 0.0)  # the column's two and the parts', below
             top[c], bottom[c] = hi, lo
+            if parts is not None:
+                parts[c] = _part_histogram(h, lo, hi, labels[sl][m], len(parts[c]))
         # the column: every candidate whose centre on the floor is within column_m of
         # this one's (the small ones by their extreme heights, the others by the 2nd and
         # 98th percentiles above)
@@ -440,6 +458,34 @@ class Segmenter:
             bottoms = np.where(near, bottom[None, 1:], np.inf).min(1)
             out[big, FEATURES.index("column_height_m")] = tops - bottoms
             out[big, FEATURES.index("column_share")] = size[big] / (near * size[None, 1:]).sum(1)
+            if parts is not None:
+                out[big, FEATURES.index("part_order"):] = part_features(parts[big],
+                                                                        part_heights)
+        return out
+
+    def part_histograms(self, cand: Candidates, labels: np.ndarray, num_labels: int,
+                        use_floor: bool = True) -> np.ndarray:
+        """(n + 1, num_labels, HEIGHT_BINS) float64: per candidate of ``cand``, its pixels
+        counted by the forest's label and by their height in the candidate (tenths of
+        its 2nd to 98th percentile above the floor, clipped; without a floor, or without
+        ``use_floor``, up in the camera), as :meth:`describe` measures heights. What
+        :func:`learn_part_heights` learns from and :func:`part_features` reads."""
+        from scipy import ndimage
+
+        floor = cand.floor if use_floor else None
+        up, off = ((floor[:3], float(floor[3])) if floor is not None
+                   else (np.array([0.0, -1.0, 0.0]), 0.0))
+        labels = np.asarray(labels)
+        out = np.zeros((cand.count + 1, num_labels, HEIGHT_BINS))
+        for c, sl in enumerate(ndimage.find_objects(cand.comp), start=1):
+            if sl is None:
+                continue
+            m = cand.comp[sl] == c
+            if m.sum() < self.min_pixels:
+                continue
+            h = cand.points[sl][m] @ up - off
+            lo, hi = np.percentile(h, [2, 98])
+            out[c] = _part_histogram(h, lo, hi, labels[sl][m], num_labels)
         return out
 
     def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
@@ -451,7 +497,7 @@ class Segmenter:
             comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
             return comp, self.is_person(table)
         cols = feature_columns(stage.features)
-        comp, x = self.features(depth_mm, intr, labels)
+        comp, x = self.features(depth_mm, intr, labels, stage.part_heights)
         ok = stage.predict_proba(x[:, cols]) >= self.min_person_prob
         ok[0] = False
         return comp, ok
@@ -583,6 +629,69 @@ class Segmenter:
             _, (iy, ix) = ndimage.distance_transform_edt(out == 0, return_indices=True)
             out[holes] = out[iy[holes], ix[holes]]
         return out
+
+
+def _part_histogram(h: np.ndarray, lo: float, hi: float, labels: np.ndarray,
+                    num_labels: int) -> np.ndarray:
+    """(num_labels, HEIGHT_BINS) float64: pixels of heights ``h`` (m) by label (labels
+    at or above ``num_labels`` left out) and tenth of ``lo``-``hi`` (clipped)."""
+    b = np.clip(((h - lo) / max(hi - lo, 1e-6) * HEIGHT_BINS).astype(np.int64), 0,
+                HEIGHT_BINS - 1)
+    ok = labels < num_labels
+    cells = labels[ok].astype(np.int64) * HEIGHT_BINS + b[ok]
+    return np.bincount(cells, minlength=num_labels * HEIGHT_BINS).astype(
+        np.float64).reshape(num_labels, HEIGHT_BINS)
+
+
+def learn_part_heights(hist: np.ndarray, person: np.ndarray) -> np.ndarray:
+    """(L,) float64: the typical height of each of the forest's parts in a person (0 =
+    feet, 1 = top of the head): the mean height (tenths' centres) of the pixels the forest
+    gives each label in the candidates ``hist`` (N, L, HEIGHT_BINS) that are people
+    (``person`` (N,) bool). NaN for label 0 (background) and for labels never seen on a
+    person. Learned from vhgen candidates; nothing here is chosen."""
+    centres = (np.arange(HEIGHT_BINS) + 0.5) / HEIGHT_BINS
+    sums = np.asarray(hist)[np.asarray(person, bool)].sum(0)
+    total = sums.sum(1)
+    out = np.full(sums.shape[0], np.nan)
+    seen = total > 0
+    out[seen] = (sums[seen] * centres).sum(1) / total[seen]
+    out[0] = np.nan
+    return out
+
+
+def part_features(hist: np.ndarray, part_heights: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 from candidates' :meth:`Segmenter.part_histograms` rows ``hist``
+    (N, L, HEIGHT_BINS) and the parts' typical heights (:func:`learn_part_heights`):
+    ``part_order``, the correlation between the height of each pixel the forest calls a
+    part and that part's typical height (a person: head over chest over legs; a coat
+    stand or a plant the forest calls a body part in places: little order; 0 with fewer
+    than 10 such pixels or no spread); ``top_parts``, the share of the candidate's top
+    fifth called a part whose typical height is in the top fifth (a head, a neck);
+    ``bottom_parts``, the share of its lowest 30% called a part typical there (feet,
+    shins, knees). Pixels the forest calls background count in the shares, not in the
+    order."""
+    hist = np.asarray(hist, np.float64)
+    typical = np.asarray(part_heights, np.float64)
+    known = ~np.isnan(typical)
+    t = np.where(known, typical, 0.0)
+    centres = (np.arange(HEIGHT_BINS) + 0.5) / HEIGHT_BINS
+    w = hist[:, known, :]
+    tk = t[known][None, :, None]
+    hb = centres[None, None, :]
+    n = w.sum((1, 2))
+    safe = np.maximum(n, 1.0)
+    dt = tk - ((w * tk).sum((1, 2)) / safe)[:, None, None]
+    dh = hb - ((w * hb).sum((1, 2)) / safe)[:, None, None]
+    denom = np.sqrt((w * dt ** 2).sum((1, 2)) * (w * dh ** 2).sum((1, 2)))
+    ok = (n >= 10) & (denom > 1e-12)
+    order = np.where(ok, (w * dt * dh).sum((1, 2)) / np.where(ok, denom, 1.0), 0.0)
+    upper = hist[:, :, TOP_BINS:]
+    lower = hist[:, :, :BOTTOM_BINS]
+    top = upper[:, known & (t >= TOP_BINS / HEIGHT_BINS)].sum((1, 2)) / np.maximum(
+        upper.sum((1, 2)), 1.0)
+    bottom = lower[:, known & (t < BOTTOM_BINS / HEIGHT_BINS)].sum((1, 2)) / np.maximum(
+        lower.sum((1, 2)), 1.0)
+    return np.stack([order, top, bottom], 1)
 
 
 def feature_columns(names: tuple[str, ...]) -> list[int]:
