@@ -294,8 +294,8 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         stage = replace(PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed),
                         part_heights=heights)
     else:
-        names = tuple(f for f in FEATURES if f not in PART_FEATURES)
-        stage = PersonStage.fit(x_all[:, [FEATURES.index(f) for f in names]], y_all, names,
+        kept = tuple(f for f in FEATURES if f not in PART_FEATURES)
+        stage = PersonStage.fit(x_all[:, [FEATURES.index(f) for f in kept]], y_all, kept,
                                 trees=trees, seed=seed)
     log.info("person stage: %d candidates (%d people) of %d frames, %.1f s", len(y_all),
              int(y_all.sum()), len(chosen), time.perf_counter() - t0)

@@ -458,7 +458,7 @@ class Segmenter:
             bottoms = np.where(near, bottom[None, 1:], np.inf).min(1)
             out[big, FEATURES.index("column_height_m")] = tops - bottoms
             out[big, FEATURES.index("column_share")] = size[big] / (near * size[None, 1:]).sum(1)
-            if parts is not None:
+            if parts is not None and part_heights is not None:
                 out[big, FEATURES.index("part_order"):] = part_features(parts[big],
                                                                         part_heights)
         return out
