@@ -186,12 +186,11 @@ def with_part_features(x: np.ndarray, y: np.ndarray, hist: np.ndarray
     """Rows ``x`` of :func:`stage_rows` with their part features filled from their
     histograms ``hist``, and the parts' typical heights learned from the rows that are
     people (``y``): (x, part_heights)."""
-    from vhgen.forest.segment import FEATURES, learn_part_heights, part_features
+    from vhgen.forest.segment import PART_COLUMNS, learn_part_heights, part_features
 
     heights = learn_part_heights(hist, y)
     x = np.array(x, np.float64)
-    x[:, FEATURES.index("part_order"):FEATURES.index("bottom_parts") + 1] = part_features(
-        hist, heights)
+    x[:, PART_COLUMNS] = part_features(hist, heights)
     return x, heights
 
 

@@ -78,14 +78,15 @@ from vhgen.geom.planes import plane_basis as _plane_basis
 from vhgen.geom.planes import spread as _spread
 from vhgen.geom.planes import triples as _triples
 
+# where the forest's parts lie in the candidate (part_features): read by stages trained
+# with them (forest person-stage --part-order), 0 for others; FEATURES' last columns
+PART_FEATURES = ("part_order", "top_parts", "bottom_parts")
 # what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
             "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
             "in_front", "at_image_edge", "body", "coherence", "parts", "behind",
-            "column_height_m", "column_share", "part_order", "top_parts", "bottom_parts")
-# where the forest's parts lie in the candidate: read by stages trained with them
-# (forest person-stage --part-order), 0 for others
-PART_FEATURES = ("part_order", "top_parts", "bottom_parts")
+            "column_height_m", "column_share", *PART_FEATURES)
+PART_COLUMNS = slice(len(FEATURES) - len(PART_FEATURES), None)
 # the candidate's height (2nd to 98th percentile) in tenths, for where the forest's parts
 # lie in it (Segmenter.part_histograms); its top fifth and lowest 30% for top_parts and
 # bottom_parts
@@ -407,9 +408,6 @@ class Segmenter:
                            for k in range(2)], 1) / np.maximum(size, 1)[:, None]
         top = np.full(n, -np.inf)
         bottom = np.full(n, np.inf)
-        labels = np.asarray(labels)
-        parts = (None if part_heights is None else
-                 np.zeros((n, len(part_heights), HEIGHT_BINS)))
         np.maximum.at(top, ids, h_all)
         np.minimum.at(bottom, ids, h_all)
         for c, sl in enumerate(ndimage.find_objects(comp), start=1):
@@ -445,8 +443,6 @@ class Segmenter:
                                      self.jump_m, unmeasured=False, nearer=True),
                       0.0, 0.0, 0.0, 0.0, 0.0)  # the column's two and the parts', below
             top[c], bottom[c] = hi, lo
-            if parts is not None:
-                parts[c] = _part_histogram(h, lo, hi, labels[sl][m], len(parts[c]))
         # the column: every candidate whose centre on the floor is within column_m of
         # this one's (the small ones by their extreme heights, the others by the 2nd and
         # 98th percentiles above)
@@ -458,9 +454,9 @@ class Segmenter:
             bottoms = np.where(near, bottom[None, 1:], np.inf).min(1)
             out[big, FEATURES.index("column_height_m")] = tops - bottoms
             out[big, FEATURES.index("column_share")] = size[big] / (near * size[None, 1:]).sum(1)
-            if parts is not None and part_heights is not None:
-                out[big, FEATURES.index("part_order"):] = part_features(parts[big],
-                                                                        part_heights)
+            if part_heights is not None:
+                hist = self.part_histograms(cand, labels, len(part_heights), use_floor)
+                out[big, PART_COLUMNS] = part_features(hist[big], part_heights)
         return out
 
     def part_histograms(self, cand: Candidates, labels: np.ndarray, num_labels: int,
@@ -485,7 +481,13 @@ class Segmenter:
                 continue
             h = cand.points[sl][m] @ up - off
             lo, hi = np.percentile(h, [2, 98])
-            out[c] = _part_histogram(h, lo, hi, labels[sl][m], num_labels)
+            tenth = np.clip(((h - lo) / max(hi - lo, 1e-6) * HEIGHT_BINS).astype(np.int64),
+                            0, HEIGHT_BINS - 1)
+            lab = labels[sl][m].astype(np.int64)
+            ok = lab < num_labels  # labels the stage has no height for: left out
+            out[c] = np.bincount(lab[ok] * HEIGHT_BINS + tenth[ok],
+                                 minlength=num_labels * HEIGHT_BINS).reshape(
+                                     num_labels, HEIGHT_BINS)
         return out
 
     def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
@@ -629,18 +631,6 @@ class Segmenter:
             _, (iy, ix) = ndimage.distance_transform_edt(out == 0, return_indices=True)
             out[holes] = out[iy[holes], ix[holes]]
         return out
-
-
-def _part_histogram(h: np.ndarray, lo: float, hi: float, labels: np.ndarray,
-                    num_labels: int) -> np.ndarray:
-    """(num_labels, HEIGHT_BINS) float64: pixels of heights ``h`` (m) by label (labels
-    at or above ``num_labels`` left out) and tenth of ``lo``-``hi`` (clipped)."""
-    b = np.clip(((h - lo) / max(hi - lo, 1e-6) * HEIGHT_BINS).astype(np.int64), 0,
-                HEIGHT_BINS - 1)
-    ok = labels < num_labels
-    cells = labels[ok].astype(np.int64) * HEIGHT_BINS + b[ok]
-    return np.bincount(cells, minlength=num_labels * HEIGHT_BINS).astype(
-        np.float64).reshape(num_labels, HEIGHT_BINS)
 
 
 def learn_part_heights(hist: np.ndarray, person: np.ndarray) -> np.ndarray:
