@@ -7,9 +7,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from tests.forest.test_person_stage import INTR, candidates, room
-from vhgen.forest.from_stores import stage_rows, with_part_features
+from vhgen.forest.from_stores import stage_rows, with_part_features, with_weaker_vote
 from vhgen.forest.person_stage import PersonStage
 from vhgen.forest.segment import (
     FEATURES,
@@ -123,7 +124,7 @@ def test_part_heights_travel_with_the_stage_and_an_older_stage_reads_without_the
 
 
 def test_cli_part_order_is_opt_in(tmp_path, capsys):
-    from tests.forest.test_cli import run
+    from tests.forest.test_cli import one_line_error, run
     from tests.forest.test_person_stage import SMALL, rooms_store
 
     store = rooms_store(tmp_path / "rooms.zarr", range(20))
@@ -132,7 +133,8 @@ def test_cli_part_order_is_opt_in(tmp_path, capsys):
                      "--max-frames", "8", "--background-share", "0.5")
     assert code == 0
     stages = {}
-    for name, extra in (("plain", ()), ("order", ("--part-order",))):
+    for name, extra in (("plain", ()), ("order", ("--part-order",)),
+                        ("weak", ("--part-order", "--weaker-vote", "0.7"))):
         out = tmp_path / f"{name}.npz"
         code, _, err = run(capsys, "forest", "person-stage", str(forest), store, "--frames",
                            "8", "--out", str(out), "--quiet", *extra)
@@ -146,7 +148,36 @@ def test_cli_part_order_is_opt_in(tmp_path, capsys):
     heights = order.person_stage.part_heights
     assert len(heights) == order.num_classes and np.isnan(heights[0])
     assert ((heights[~np.isnan(heights)] > 0) & (heights[~np.isnan(heights)] < 1)).all()
+    # the weaker-vote copies come after the heights are learned: the same heights, other
+    # trees; off unless asked for
+    weak = stages["weak"]
+    assert weak.meta["person_stage"]["weaker_vote"] == 0.7
+    assert order.meta["person_stage"]["weaker_vote"] is None
+    np.testing.assert_array_equal(weak.person_stage.part_heights, heights)
+    assert not np.array_equal(weak.person_stage.threshold, order.person_stage.threshold)
+    one_line_error(capsys, "forest", "person-stage", str(forest), store, "--weaker-vote", "1",
+                   match="--weaker-vote")
     test = rooms_store(tmp_path / "test.zarr", range(300, 304))
     code, out, err = run(capsys, "forest", "eval", str(tmp_path / "order.npz"), test,
                          "--segment")
     assert code == 0 and "person stage" in out, err
+
+
+def test_weaker_vote_copies_every_row_with_only_its_vote_lowered():
+    rng = np.random.default_rng(5)
+    x = rng.uniform(0.1, 1.0, (200, len(FEATURES)))
+    y = rng.random(200) < 0.3
+    body = FEATURES.index("body")
+    xx, yy = with_weaker_vote(x, y, 0.7, seed=3)
+    assert xx.shape == (400, len(FEATURES))
+    np.testing.assert_array_equal(xx[:200], x)
+    np.testing.assert_array_equal(yy, np.concatenate([y, y]))
+    others = np.arange(len(FEATURES)) != body
+    np.testing.assert_array_equal(xx[200:, others], x[:, others])
+    factor = xx[200:, body] / x[:, body]
+    assert factor.min() >= 0.7 and factor.max() <= 1.0 and factor.std() > 0.05
+    np.testing.assert_array_equal(with_weaker_vote(x, y, 0.7, seed=3)[0], xx)
+    assert not np.array_equal(with_weaker_vote(x, y, 0.7, seed=4)[0], xx)
+    for low in (0.0, 1.0):
+        with pytest.raises(ValueError, match=r"\(0, 1\)"):
+            with_weaker_vote(x, y, low, seed=3)

@@ -356,7 +356,7 @@ def _cmd_label(args: argparse.Namespace) -> int:
 
 def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
                       quiet: bool, cut_out: bool = False, vote: str = "argmax",
-                      part_order: bool = False) -> None:
+                      part_order: bool = False, weaker_vote: float | None = None) -> None:
     from vhgen.forest.from_stores import train_person_stage
 
     if forest.meta.get("params", {}).get("segmented"):
@@ -369,12 +369,13 @@ def _add_person_stage(forest: Any, stores: list[str], frames: int, seed: int,
     else:
         forest.meta["vote"] = vote
     stage = train_person_stage(forest, stores, frames=frames, seed=seed, cut_out=cut_out,
-                               part_order=part_order, progress=None if quiet else _progress)
+                               part_order=part_order, weaker_vote=weaker_vote,
+                               progress=None if quiet else _progress)
     forest.person_stage = stage
     forest.meta["person_stage"] = {"stores": [str(Path(s).resolve()) for s in stores],
                                    "frames": frames, "seed": seed, "trees": len(stage.roots),
                                    "cut_out": cut_out, "vote": vote,
-                                   "part_order": part_order}
+                                   "part_order": part_order, "weaker_vote": weaker_vote}
 
 
 def _cmd_person_stage(args: argparse.Namespace) -> int:
@@ -382,7 +383,7 @@ def _cmd_person_stage(args: argparse.Namespace) -> int:
 
     forest = Forest.load(args.forest)
     _add_person_stage(forest, args.stores, args.frames, args.seed, args.quiet,
-                      args.cut_out, args.vote, args.part_order)
+                      args.cut_out, args.vote, args.part_order, args.weaker_vote)
     path = forest.save(args.out or args.forest)
     print(f"wrote {path}: the forest with a person stage of "
           f"{forest.meta['person_stage']['trees']} trees from {args.frames} frames")
@@ -496,6 +497,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     help="the stage also reads where the forest's parts lie in a candidate "
                          "(head over chest over legs): finds more far people and calls "
                          "fewer things people, finds fewer of a line of people side by side")
+    ps.add_argument("--weaker-vote", type=A.float_range(0, 1, lo_open=True, hi_open=True),
+                    metavar="LOW",
+                    help="also learn from every candidate with the forest's vote on it (the "
+                         "share called a body part) times a random factor in [LOW, 1], so "
+                         "that people the forest calls less of a body part, as real people, "
+                         "are still found (off by default; docs/forest.md)")
     ps.add_argument("--vote", choices=("argmax", "mass"), default="argmax",
                     help="how the forest's labels, which the stage learns from and decides "
                          "on, call a pixel a person's: 'argmax' (default), the most probable "

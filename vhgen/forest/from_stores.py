@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _CROP_STREAM = 0xC209  # the seed stream of the person stage's cropped views
+_WEAK_STREAM = 0x3EA4  # the seed stream of the person stage's weaker-vote copies
 
 
 class FrameShard(ImageShard):
@@ -181,6 +182,21 @@ def stage_rows(seg: Segmenter, depth_mm: np.ndarray, intr: Intrinsics, labels: n
     return np.concatenate(xs), np.concatenate(ys)
 
 
+def with_weaker_vote(x: np.ndarray, y: np.ndarray, low: float, seed: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``x`` of :func:`stage_rows` (truths ``y``) followed by a copy of each whose
+    ``body`` is multiplied by a uniform draw in [``low``, 1]: what the stage learns when
+    it should also find people whose vote is weaker."""
+    from vhgen.forest.segment import FEATURES
+
+    if not 0.0 < low < 1.0:
+        raise ValueError(f"weaker_vote {low}: a factor in (0, 1)")
+    weak = x.copy()
+    rng = np.random.default_rng(np.random.SeedSequence([seed, _WEAK_STREAM]))
+    weak[:, FEATURES.index("body")] *= rng.uniform(low, 1.0, len(x))
+    return np.concatenate([x, weak]), np.concatenate([y, y])
+
+
 def with_part_features(x: np.ndarray, y: np.ndarray, hist: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Rows ``x`` of :func:`stage_rows` with their part features filled from their
@@ -212,6 +228,7 @@ def cropped_view(depth_mm: np.ndarray, truth: np.ndarray, rng: np.random.Generat
 def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                        trees: int = 200, seed: int = 0, without_floor: bool = True,
                        cropped: bool = True, cut_out: bool = False, part_order: bool = False,
+                       weaker_vote: float | None = None,
                        progress: Callable[[str], None] | None = None) -> PersonStage:
     """The person stage of the segmentation stage (:mod:`vhgen.forest.person_stage`) for
     ``forest``: the segmentation stage's candidates on ``frames`` frames of ``stores`` the
@@ -233,7 +250,11 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
     parts lie in a candidate (:data:`vhgen.forest.segment.PART_FEATURES`), with each
     part's typical height in a person learned from these candidates and kept in the
     stage: more of the far people found and fewer things called people, fewer of a line
-    of people side by side (docs/forest.md)."""
+    of people side by side (docs/forest.md). ``weaker_vote`` (opt-in, in (0, 1)): every
+    row is also given a second time with its ``body`` (the share of the candidate the
+    forest calls a body part) times a uniform draw in [weaker_vote, 1] (seeded by
+    ``seed``), so that the stage also learns people whose vote is weaker, as real
+    people's is than vhgen people's (docs/forest.md)."""
     from vhgen.forest.segment import FEATURES, PART_FEATURES, Segmenter
     from vhgen.forest.trees import predictors_at_focal
 
@@ -290,6 +311,9 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
                           f"{int(y_all.sum())} people among {len(y_all)} candidates")
     if part_order:
         x_all, heights = with_part_features(x_all, y_all, np.concatenate(hs))
+    if weaker_vote is not None:
+        x_all, y_all = with_weaker_vote(x_all, y_all, weaker_vote, seed)
+    if part_order:
         stage = replace(PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed),
                         part_heights=heights)
     else:
