@@ -309,17 +309,14 @@ def train_person_stage(forest: Forest, stores: list[str], *, frames: int = 400,
         raise ForestError(f"{stores[0]}: the person stage needs candidates that are people "
                           f"and candidates that are not; {len(chosen)} frames gave "
                           f"{int(y_all.sum())} people among {len(y_all)} candidates")
+    heights = None
     if part_order:
         x_all, heights = with_part_features(x_all, y_all, np.concatenate(hs))
     if weaker_vote is not None:
         x_all, y_all = with_weaker_vote(x_all, y_all, weaker_vote, seed)
-    if part_order:
-        stage = replace(PersonStage.fit(x_all, y_all, FEATURES, trees=trees, seed=seed),
-                        part_heights=heights)
-    else:
-        kept = tuple(f for f in FEATURES if f not in PART_FEATURES)
-        stage = PersonStage.fit(x_all[:, [FEATURES.index(f) for f in kept]], y_all, kept,
-                                trees=trees, seed=seed)
+    kept = FEATURES if part_order else tuple(f for f in FEATURES if f not in PART_FEATURES)
+    stage = replace(PersonStage.fit(x_all[:, [FEATURES.index(f) for f in kept]], y_all, kept,
+                                    trees=trees, seed=seed), part_heights=heights)
     log.info("person stage: %d candidates (%d people) of %d frames, %.1f s", len(y_all),
              int(y_all.sum()), len(chosen), time.perf_counter() - t0)
     return stage
