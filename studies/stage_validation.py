@@ -70,7 +70,7 @@ def main() -> None:
                 labels = pred.predict(depth)
                 for i, d in enumerate(depth):
                     inst = seg.instances(d, intr, labels[i], forest.person_stage)
-                    score.add(frame_people(inst > 0, d, got["instances"][s + i]),
+                    score.add(frame_people(inst, d, got["instances"][s + i]),
                               (store, int(frames[s + i])))
         print(f"{path}: {len(val)} validation frames of {len(stores)} stores "
               f"(the draw's first {first} frames, seed {seed}, left out; the stage took {n}), "

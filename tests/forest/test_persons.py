@@ -117,6 +117,49 @@ def test_everyone_found_counts_frames_whose_every_person_is():
     assert "all found" in table(res) and "0.500" in table(res)
 
 
+
+def test_false_people_are_called_instances_mostly_not_a_person():
+    """With the calls given as instance ids, a called instance less than half of whose
+    measured pixels are a person's is a false person; exactly half is not one. A bare
+    mask counts none and reports no false_per_frame."""
+    called, depth, inst = known_frame()
+    ids = np.zeros(called.shape, np.uint8)
+    ids[called & (inst == 1)] = 1  # person 1
+    ids[called & (inst == 2)] = 2  # half of person 2
+    ids[called & (inst == 3)] = 3  # some of person 3
+    ids[9, 0:3] = 4  # the wall: 3 px, no person
+    ids[5, 0:2], ids[6, 0:2] = 5, 5  # 4 px of wall
+    ids[7, 0:4] = 5  # and 4 more: 0 of 8 a person
+    half = np.zeros(called.shape, bool)
+    half[5, 8:12] = True  # 4 wall pixels with 4 of person 3's not yet called
+    ids[half] = 6
+    rows, cols = np.nonzero((inst == 3) & ~(ids > 0))
+    ids[rows[:4], cols[:4]] = 6  # 4 person pixels + 4 wall: exactly half, not false
+    fp = frame_people(ids, depth, inst)
+    assert fp.false_people == 2  # 4 and 5
+    # the scores of the ids are those of the mask they cover
+    same = frame_people(ids > 0, depth, inst)
+    assert same.false_people is None
+    np.testing.assert_array_equal(fp.called_other, same.called_other)
+    assert [p["called"] for p in fp.people] == [p["called"] for p in same.people]
+
+    score = PeopleScore()
+    score.add(fp, ("s", 0))
+    score.add(frame_people(np.zeros_like(ids), depth, inst), ("s", 1))  # nothing called
+    res = score.result()
+    g = {r["bin"]: r for r in res["by_group"]}
+    assert (g["2-3"]["false_people"], g["2-3"]["false_per_frame"]) == (2, 1.0)
+    # six called instances, two of them false (the empty frame calls none)
+    assert (g["2-3"]["called_people"], g["2-3"]["instance_precision"]) == (6, 4 / 6)
+    assert "false_per_frame" not in g["1"]  # no frames there
+    assert res["overall"]["false_per_frame"] == 1.0
+    assert "false/frame" in table(res) and "1.000" in table(res)
+
+    plain = PeopleScore()
+    plain.add(same, ("s", 0))
+    assert "false_per_frame" not in plain.result()["overall"]
+    assert "false/frame" not in table(plain.result())
+
 def test_one_pixel_short_of_half_is_not_found():
     called, depth, inst = known_frame()
     called[0, 4] = False  # person 2: 9 of 20
@@ -213,6 +256,11 @@ def test_forest_eval_prints_and_writes_person_scores(tmp_path, capsys, boxes_sto
     seg = json.loads((tmp_path / "s.json").read_text())["people"]
     assert seg["overall"]["people"] == 4
     assert seg["overall"]["pixels"] == res["overall"]["pixels"]
+    # the segmentation's people are instances: its false people are counted, the forest's
+    # bare labels have none to count
+    assert seg["overall"]["false_people"] >= 0 and "false/frame" in out
+    assert seg["overall"]["false_per_frame"] == seg["overall"]["false_people"] / 2
+    assert "false_per_frame" not in res["overall"]
     a = json.loads((tmp_path / "e.json").read_text())
     b = json.loads((tmp_path / "s.json").read_text())
     assert a["confusion"] == b["confusion"]

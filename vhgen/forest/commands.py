@@ -192,7 +192,7 @@ def _eval_stores(forest: Any, args: argparse.Namespace) -> dict:
         how = called_by(forest, args.min_body_fraction, parts)
 
         def mask(depth: Any, labels: Any, info: Any) -> Any:
-            return lab.people(depth, info.intrinsics, labels)[1] > 0
+            return lab.people(depth, info.intrinsics, labels)[1]  # instances: false counted
 
     res = evaluate(forest, infos, max_frames=args.max_frames, out_dir=args.out,
                    person_mask=mask, called_by=how, parts=parts, cut_out=args.cut_out)

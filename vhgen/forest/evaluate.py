@@ -31,7 +31,8 @@ from vhgen.forest.persons import PeopleScore, frame_people
 from vhgen.forest.trees import Forest, Predictor
 
 # (depth (H, W) uint16 mm, the forest's labels (H, W) uint8, the frame's store) ->
-# (H, W) bool: the pixels called a person
+# (H, W) bool: the pixels called a person, or integer person instance ids (0 = none),
+# with which the person scores also count false people (vhgen.forest.persons)
 PersonMask = Callable[[np.ndarray, np.ndarray, StoreInfo], np.ndarray]
 
 log = logging.getLogger(__name__)

@@ -23,7 +23,15 @@ with a measurement (depth > 0) count. No threshold here was fitted to any data:
   over the pixels of the people whose distance falls in the bin;
 - ``precision`` (pixels): called pixels that are a person / called pixels; per distance
   bin over the called pixels whose *own* depth falls in the bin (a wrong call has no
-  person to take a distance from), per group bin over the called pixels of its frames.
+  person to take a distance from), per group bin over the called pixels of its frames;
+- where the calls are people instances (the segmentation stage's, not a bare mask), a
+  **false person** is a called instance less than half of whose measured pixels are a
+  person's (:data:`FALSE_SHARE`): a bookcase called a person. ``false_per_frame`` (per
+  group bin and overall) = false people / frames, the false positives per image of
+  pedestrian detection (Dollar et al. 2012); ``instance_precision`` = 1 - false people /
+  called instances (a person cut in two is two true calls). Pixel precision weighs a
+  false person by its size, so one object near the camera outweighs many far ones; these
+  count them.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ GROUP_BINS = ((0, 0, "0"), (1, 1, "1"), (2, 3, "2-3"), (4, 6, "4-6"))
 MAIN_GROUP_BINS = ("1", "2-3", "4-6")
 UNKNOWN_GROUP = "?"
 FOUND_SHARE = 0.5
+FALSE_SHARE = 0.5
 
 
 def distance_bin(distance_m: float) -> str:
@@ -74,18 +83,30 @@ class FramePeople:
     people: list[dict]  # per visible person: instance, pixels, called, distance_m, touching
     called_person: np.ndarray  # (len(DISTANCE_BINS),) int64, by the pixel's own depth
     called_other: np.ndarray  # (len(DISTANCE_BINS),) int64, called pixels on no person
+    false_people: int | None = None  # called instances mostly not a person (None: a mask)
+    called_people: int | None = None  # called instances with a measured pixel
 
 
 def frame_people(called: np.ndarray, depth_mm: np.ndarray, instances: np.ndarray,
                  *, has_instances: bool = True) -> FramePeople:
-    """Score one frame. ``called`` (H, W) bool, ``depth_mm`` (H, W) uint16 (0 = no
-    measurement), ``instances`` (H, W) uint8 (0 = no person); ``has_instances`` False:
-    the instances are ``labels > 0`` (one person of unknown group size)."""
+    """Score one frame. ``called`` (H, W) bool, or the called people as instance ids
+    (any integer type, 0 = none: false people are counted), ``depth_mm`` (H, W) uint16
+    (0 = no measurement), ``instances`` (H, W) uint8 (0 = no person); ``has_instances``
+    False: the instances are ``labels > 0`` (one person of unknown group size)."""
     depth = np.asarray(depth_mm)
     inst = np.asarray(instances).astype(np.uint8, copy=False)
     valid = depth > 0
     vinst = np.where(valid, inst, 0)
-    called = np.asarray(called, bool) & valid
+    ids = np.asarray(called)
+    called = ids.astype(bool) & valid
+    false_people = called_people = None
+    if ids.dtype != bool:
+        # per called instance: its measured pixels, and those on a person
+        own = np.where(called, ids, 0).ravel().astype(np.int64)
+        size = np.bincount(own)
+        on = np.bincount(own, weights=(vinst > 0).ravel())
+        false_people = int(((size[1:] > 0) & (on[1:] < FALSE_SHARE * size[1:])).sum())
+        called_people = int((size[1:] > 0).sum())
     pixels = np.bincount(vinst.ravel(), minlength=256)
     hit = np.bincount(vinst[called], minlength=256)
     touching = _touching(inst)
@@ -100,7 +121,8 @@ def frame_people(called: np.ndarray, depth_mm: np.ndarray, instances: np.ndarray
     return FramePeople(
         group_bin(len(people) if has_instances else None), people,
         np.bincount(px_bin[called & on_person], minlength=nb).astype(np.int64),
-        np.bincount(px_bin[called & ~on_person], minlength=nb).astype(np.int64))
+        np.bincount(px_bin[called & ~on_person], minlength=nb).astype(np.int64),
+        false_people, called_people)
 
 
 def _ratio(a: int, b: int) -> float | None:
@@ -118,12 +140,21 @@ class _Tally:
     called_other: int = 0  # called pixels that are no person
     with_people: int = 0  # frames with someone visible
     everyone_found: int = 0  # of those, frames whose every visible person is found
+    counted: int = 0  # frames whose called people are instances (false people counted)
+    false_people: int = 0
+    called_people: int = 0
 
     def row(self, name: str, with_frames: bool, with_precision: bool) -> dict:
         r: dict = {"bin": name}
         if with_frames:
             r.update({"frames": self.frames, "frames_everyone_found": self.everyone_found,
                       "everyone_found": _ratio(self.everyone_found, self.with_people)})
+            if self.counted:
+                r.update({"called_people": self.called_people,
+                          "false_people": self.false_people,
+                          "false_per_frame": self.false_people / self.counted,
+                          "instance_precision": _ratio(
+                              self.called_people - self.false_people, self.called_people)})
         r.update({"people": self.people, "found": self.found,
                   "instance_recall": _ratio(self.found, self.people),
                   "pixels": self.pixels, "recall": _ratio(self.called, self.pixels)})
@@ -159,6 +190,10 @@ class PeopleScore:
             t.called_other += int(fp.called_other.sum())
             t.with_people += int(bool(found))
             t.everyone_found += int(bool(found) and all(found))
+            if fp.false_people is not None and fp.called_people is not None:
+                t.counted += 1
+                t.false_people += fp.false_people
+                t.called_people += fp.called_people
         for b, name in enumerate(DISTANCE_BINS):
             d = self.by_distance.setdefault(name, _Tally())
             d.called_person += int(fp.called_person[b])
@@ -209,18 +244,25 @@ def table(res: dict) -> str:
     def f(v: float | None) -> str:
         return "-" if v is None else f"{v:.3f}"
 
+    false = "false_per_frame" in res["overall"]
     head = (f"{'frames':>7} {'people':>7} {'found':>6} {'inst.recall':>11} "
-            f"{'px recall':>9} {'px precision':>12} {'all found':>9}")
+            f"{'px recall':>9} {'px precision':>12} {'all found':>9}"
+            + (f" {'false/frame':>11} {'inst.precision':>14}" if false else ""))
     lines = [f"person scores (called: {res['called']}; found: at least "
              f"{res['found_share']:.0%} of a person's pixels called; all found: frames in "
-             f"which every person is; truth: {res['truth']})"]
+             f"which every person is; "
+             + ("false/frame: called people mostly not a person, per frame; inst.precision: "
+                "the other called people's share; " if false else "")
+             + f"truth: {res['truth']})"]
 
     def block(title: str, rows: list[dict], suffix: str = "") -> None:
         lines.append(f"{title:<16} {head}")
         for r in rows:
             lines.append(f"{r['bin'] + suffix:<16} {r.get('frames', ''):>7} {r['people']:>7} "
                          f"{r['found']:>6} {f(r['instance_recall']):>11} {f(r['recall']):>9} "
-                         f"{f(r.get('precision')):>12} {f(r.get('everyone_found')):>9}")
+                         f"{f(r.get('precision')):>12} {f(r.get('everyone_found')):>9}"
+                         + (f" {f(r.get('false_per_frame')):>11} "
+                            f"{f(r.get('instance_precision')):>14}" if false else ""))
 
     block("distance", res["by_distance"], " m")
     block("contact", res["by_contact"])
