@@ -589,3 +589,29 @@ def test_a_cut_out_view_keeps_the_people_alone(tmp_path):
     assert yc.sum() >= 20 and (stage.predict_proba(xc[yc]) >= 0.5).mean() >= 0.9
     xw, yw = rows(range(100, 115), False)
     assert (~yw).sum() >= 10 and (stage.predict_proba(xw[~yw]) >= 0.5).mean() <= 0.1
+
+
+def test_nothing_narrower_than_a_forearm_is_a_person():
+    """A stage that calls every candidate a person still passes no candidate under
+    ``min_width_m`` wide on the floor: a pole 0.03 m across (a curtain fold) in a room of
+    people is dropped, the people are kept."""
+    from dataclasses import replace
+
+    depth, labels, who = room(3)
+    rays = pixel_rays(INTR)
+    z = 2.2
+    x, up = rays[..., 0] * z, 1.3 - rays[..., 1] * z
+    pole = (np.abs(x - 1.2) <= 0.015) & (up >= 0.0) & (up <= 1.5) & (depth > z * 1000)
+    depth[pole], labels[pole], who[pole] = round(z * 1000), 4, 0
+    yes = PersonStage(np.array([-1]), np.zeros(1), np.array([-1]), np.array([-1]),
+                      np.ones(1), np.array([0]), FEATURES)
+    seg = Segmenter(min_pixels=20)
+    comp, x_all = seg.features(depth, INTR, labels)
+    k = np.bincount(comp[pole]).argmax()  # the pole's candidate
+    assert (comp == k).sum() >= 20 and x_all[k, FEATURES.index("width_m")] < 0.05
+    _, ok = seg.people(depth, INTR, labels, yes)
+    assert not ok[k]
+    for p in range(1, who.max() + 1):  # every person still kept
+        assert ok[np.bincount(comp[who == p]).argmax()]
+    _, every = replace(seg, min_width_m=0.0).people(depth, INTR, labels, yes)
+    assert every[k] and every.sum() == ok.sum() + 1

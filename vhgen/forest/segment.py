@@ -44,10 +44,11 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    stored in the forest's file), a candidate of at least ``min_pixels`` pixels is a
    person when the stage's trees, reading its :data:`FEATURES` (:meth:`Segmenter.features`:
    its size and shape in metres on the floor, and the forest's vote), give it at least
-   ``min_person_prob``. Without one, the **vote**: a candidate is a person when it has at
-   least ``min_pixels`` pixels, its 3D extent is person-like (at most ``max_extent_m``
-   along its longest axis, at least ``min_extent_m``), and the forest gives at least
-   ``min_body_fraction`` of its pixels a body part (optionally also: ``min_coherence``,
+   ``min_person_prob`` and it is at least ``min_width_m`` wide. Without one, the
+   **vote**: a candidate is a person when it has at least ``min_pixels`` pixels, its 3D
+   extent is person-like (at most ``max_extent_m`` along its longest axis, at least
+   ``min_extent_m``), and the forest gives at least ``min_body_fraction`` of its pixels
+   a body part (optionally also: ``min_coherence``,
    the share of neighbouring body pixels with the same part, and ``min_parts`` parts
    present; both off by default: on build data they told people from other clusters no
    better than the body share);
@@ -162,6 +163,9 @@ class Segmenter:
     # with a trained person stage (vhgen.forest.person_stage): its probability a candidate
     # is a person, classes weighted to equal total (not fitted: the even odds)
     min_person_prob: float = 0.5
+    # and never a candidate narrower than any part of a body seen from any side (a forearm
+    # ~0.08 m): curtain folds 0.02-0.03 m wide the forest calls a body part
+    min_width_m: float = 0.05
     seed: int = 0
 
     def plane_tolerance(self, z: np.ndarray) -> np.ndarray:
@@ -493,14 +497,16 @@ class Segmenter:
     def people(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
                stage: PersonStage | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Step 3: the candidates (H, W) int32 and (n + 1,) bool, which are people: by
-        the person ``stage`` when given (its probability at least ``min_person_prob``),
-        else by the forest's vote (:meth:`is_person`). Index 0 is False."""
+        the person ``stage`` when given (its probability at least ``min_person_prob``,
+        and at least ``min_width_m`` wide), else by the forest's vote (:meth:`is_person`).
+        Index 0 is False."""
         if stage is None:
             comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
             return comp, self.is_person(table)
         cols = feature_columns(stage.features)
         comp, x = self.features(depth_mm, intr, labels, stage.part_heights)
         ok = stage.predict_proba(x[:, cols]) >= self.min_person_prob
+        ok &= ~(x[:, FEATURES.index("width_m")] < self.min_width_m)  # NaN rows: the stage's 0
         ok[0] = False
         return comp, ok
 
