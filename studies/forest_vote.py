@@ -36,7 +36,7 @@ def main() -> None:
     from vhgen.forest.commands import frame_intrinsics
     from vhgen.forest.data import read_classes, read_frames, store_info
     from vhgen.forest.from_stores import cut_out_view, stage_rows
-    from vhgen.forest.segment import FEATURES, Segmenter, feature_columns
+    from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Forest, predictors_at_focal
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -85,9 +85,11 @@ def main() -> None:
         frame = read_depth(path)
         intr = frame_intrinsics(frame, forest, args.fx)
         labels = at(intr.fx, intr.fy).predict(frame.depth_mm)
-        comp, x = seg.features(frame.depth_mm, intr, labels)
-        p = (stage.predict_proba(x[:, feature_columns(stage.features)])
-             if stage is not None else np.full(len(x), np.nan))
+        if stage is not None:  # described with the stage's own part heights
+            comp, x, p = seg.person_probability(frame.depth_mm, intr, labels, stage)
+        else:
+            comp, x = seg.features(frame.depth_mm, intr, labels)
+            p = np.full(len(x), np.nan)
         for c in np.flatnonzero(~np.isnan(x).any(1)):
             pixels = int((comp == c).sum())
             if pixels >= 5000:  # people, not the crumbs at their edges

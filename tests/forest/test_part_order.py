@@ -121,6 +121,10 @@ def test_part_heights_travel_with_the_stage_and_an_older_stage_reads_without_the
     expect = stage.predict_proba(feats) >= seg.min_person_prob
     expect[0] = False
     np.testing.assert_array_equal(person, expect)
+    # what studies read: the same features and probabilities, the heights the stage's
+    _, got, p = seg.person_probability(depth, INTR, labels, stage)
+    np.testing.assert_array_equal(got, feats)
+    np.testing.assert_array_equal(p, stage.predict_proba(feats))
 
 
 def test_cli_part_order_is_opt_in(tmp_path, capsys):

@@ -47,7 +47,7 @@ GROUP_BINS = ((0, 0, "0"), (1, 1, "1"), (2, 3, "2-3"), (4, 6, "4-6"))
 MAIN_GROUP_BINS = ("1", "2-3", "4-6")
 UNKNOWN_GROUP = "?"
 FOUND_SHARE = 0.5
-FALSE_SHARE = 0.5
+FALSE_SHARE = FOUND_SHARE  # a false person: the mirror of a found one
 
 
 def distance_bin(distance_m: float) -> str:

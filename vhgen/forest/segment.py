@@ -48,10 +48,9 @@ around a body-part forest, for one depth frame (H, W) uint16 mm and its intrinsi
    **vote**: a candidate is a person when it has at least ``min_pixels`` pixels, its 3D
    extent is person-like (at most ``max_extent_m`` along its longest axis, at least
    ``min_extent_m``), and the forest gives at least ``min_body_fraction`` of its pixels
-   a body part (optionally also: ``min_coherence``,
-   the share of neighbouring body pixels with the same part, and ``min_parts`` parts
-   present; both off by default: on build data they told people from other clusters no
-   better than the body share);
+   a body part (optionally also: ``min_coherence``, the share of neighbouring body pixels
+   with the same part, and ``min_parts`` parts present; both off by default: on build
+   data they told people from other clusters no better than the body share);
 4. **labels**: pixels outside person clusters become background (0); inside, a pixel the
    forest left as background takes the part of the nearest pixel it labelled;
    :meth:`Segmenter.instances` numbers the people kept (1, 2, ... left to right).
@@ -503,12 +502,19 @@ class Segmenter:
         if stage is None:
             comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
             return comp, self.is_person(table)
-        cols = feature_columns(stage.features)
-        comp, x = self.features(depth_mm, intr, labels, stage.part_heights)
-        ok = stage.predict_proba(x[:, cols]) >= self.min_person_prob
+        comp, x, p = self.person_probability(depth_mm, intr, labels, stage)
+        ok = p >= self.min_person_prob
         ok &= ~(x[:, FEATURES.index("width_m")] < self.min_width_m)  # NaN rows: the stage's 0
         ok[0] = False
         return comp, ok
+
+    def person_probability(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
+                           stage: PersonStage) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The candidates (H, W) int32, their :data:`FEATURES` (n + 1, F) described with
+        the ``stage``'s own part heights, and (n + 1,) the stage's probability of each
+        (NaN rows: 0)."""
+        comp, x = self.features(depth_mm, intr, labels, stage.part_heights)
+        return comp, x, stage.predict_proba(x[:, feature_columns(stage.features)])
 
     def split_people(self, comp: np.ndarray, n: int, points: np.ndarray,
                      floor: np.ndarray | None) -> tuple[np.ndarray, int]:
