@@ -160,6 +160,31 @@ def test_false_people_are_called_instances_mostly_not_a_person():
     assert "false_per_frame" not in plain.result()["overall"]
     assert "false/frame" not in table(plain.result())
 
+def test_frames_whose_background_is_called_past_three_percent():
+    """A frame's background called: its measured pixels on no person that are called,
+    over those pixels (68 of the known frame's wall). 3 of 68 is over 3%, 2 of 68 not;
+    the frames over it are counted per group bin and overall."""
+    called, depth, inst = known_frame()
+    fp = frame_people(called, depth, inst)
+    assert fp.background == 68 and fp.background_called == pytest.approx(3 / 68)
+    fewer = called.copy()
+    fewer[9, 2] = False
+    assert frame_people(fewer, depth, inst).background_called == pytest.approx(2 / 68)
+    score = PeopleScore()
+    score.add(fp, ("s", 0))
+    score.add(frame_people(fewer, depth, inst), ("s", 1))
+    alone = np.where(inst == 1, inst, 0)  # one person: the others' pixels are background
+    score.add(frame_people(called, depth, alone), ("s", 2))
+    res = score.result()
+    g = {r["bin"]: r for r in res["by_group"]}
+    assert (g["2-3"]["background_over"], g["2-3"]["background_over_share"]) == (1, 0.5)
+    assert g["1"]["background_over"] == 1  # persons 2 and 3's called pixels now count
+    assert res["overall"]["background_over"] == 2
+    assert res["background_share"] == 0.03 and "bg>3%" in table(res)
+    nothing = frame_people(np.zeros_like(called), depth, np.full_like(inst, 1))
+    assert nothing.background == 0 and nothing.background_called == 0.0
+
+
 def test_one_pixel_short_of_half_is_not_found():
     called, depth, inst = known_frame()
     called[0, 4] = False  # person 2: 9 of 20
