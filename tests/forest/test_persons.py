@@ -180,6 +180,8 @@ def test_frames_whose_background_is_called_past_three_percent():
     assert (g["2-3"]["background_over"], g["2-3"]["background_over_share"]) == (1, 0.5)
     assert g["1"]["background_over"] == 1  # persons 2 and 3's called pixels now count
     assert res["overall"]["background_over"] == 2
+    assert res["background_frames"] == [["s", 0, round(3 / 68, 4)], ["s", 2, round(
+        frame_people(called, depth, alone).background_called, 4)]]
     assert res["background_share"] == 0.03 and "bg>3%" in table(res)
     nothing = frame_people(np.zeros_like(called), depth, np.full_like(inst, 1))
     assert nothing.background == 0 and nothing.background_called == 0.0

@@ -37,7 +37,8 @@ with a measurement (depth > 0) count. No threshold here was fitted to any data:
   in which it is more than :data:`BACKGROUND_SHARE` (the issue's target for real rooms
   with nobody: at most 3% of the background called a body part in every room), and
   ``background_over_share`` their share of the frames: a held-out stand-in for "every
-  room", where pixel precision pools all frames into one number.
+  room", where pixel precision pools all frames into one number; ``background_frames``
+  names those frames (store, frame, background called).
 """
 
 from __future__ import annotations
@@ -192,11 +193,15 @@ class PeopleScore:
     by_contact: dict[str, _Tally] = field(default_factory=dict)
     overall: _Tally = field(default_factory=_Tally)
     instances: list[list] = field(default_factory=list)
+    background_frames: list[list] = field(default_factory=list)  # over BACKGROUND_SHARE
 
     def add(self, fp: FramePeople, where: tuple[str, int], has_instances: bool = True
             ) -> None:
         """Add a frame; ``where`` = (store, frame) names it in the per-person rows."""
         self.truth.add("instances" if has_instances else "labels")
+        if fp.background_called > BACKGROUND_SHARE:
+            self.background_frames.append([where[0], where[1],
+                                           round(fp.background_called, 4)])
         g = self.by_group.setdefault(fp.group, _Tally())
         tallies = [g, self.overall]
         found = [p["called"] >= FOUND_SHARE * p["pixels"] for p in fp.people]
@@ -254,6 +259,8 @@ class PeopleScore:
             "instance_columns": ["store", "frame", "instance", "pixels", "distance_m",
                                  "called_share", "found", "touching"],
             "instances": self.instances,
+            "background_frame_columns": ["store", "frame", "background_called"],
+            "background_frames": self.background_frames,
         }
 
 
