@@ -32,16 +32,6 @@ DEPTH_M = 0.5  # a body's depth: people side by side stand within it
 TOP_M = 0.3  # adults' heads stand 1.5-1.9 m above the floor
 
 
-def touching(comp: np.ndarray) -> np.ndarray:
-    """(K, 2) int: both orders of every pair of candidates 4-neighbours in the image."""
-    pairs = []
-    for a, b in ((comp[:, :-1], comp[:, 1:]), (comp[:-1], comp[1:])):
-        m = (a > 0) & (b > 0) & (a != b)
-        pairs.append(np.stack([a[m], b[m]], 1))
-    pr = np.unique(np.concatenate(pairs), axis=0) if pairs else np.zeros((0, 2), int)
-    return np.concatenate([pr, pr[:, ::-1]])
-
-
 def beside(x: np.ndarray, pairs: np.ndarray, called: np.ndarray, level: bool) -> np.ndarray:
     """(n + 1,) bool: candidates that touch a ``called`` one within DEPTH_M (and TOP_M)."""
     from vhgen.forest.segment import FEATURES
@@ -70,6 +60,7 @@ def frames_of(store: str, n: int):
 def measure_p_star(forest, level: bool, frames: int) -> float:
     from vhgen.forest.data import store_info
     from vhgen.forest.from_stores import person_stage_frames, read_frames
+    from vhgen.forest.persons import neighbour_pairs
     from vhgen.forest.segment import Segmenter
     from vhgen.forest.trees import predictors_at_focal
 
@@ -78,23 +69,26 @@ def measure_p_star(forest, level: bool, frames: int) -> float:
     pick = np.random.default_rng(0).choice(len(chosen), min(frames, len(chosen)), replace=False)
     chosen = [chosen[i] for i in sorted(pick.tolist())]
     at = predictors_at_focal(forest)
+    infos = {p: store_info(p) for p in {t[0] for t in chosen}}
     seg = Segmenter()
     n_all = n_all_p = n_near = n_near_p = 0
-    for path, frame, shard in chosen:
-        info = store_info(path)
-        depth, truth = read_frames([(path, frame, shard)])
-        labels = at(info.fx, info.fy).predict(depth)[0]
-        cand = seg.candidates(depth[0], info.intrinsics, labels)
-        x = seg.describe(cand, depth[0], info.intrinsics, labels)
-        size = np.bincount(cand.comp.ravel(), minlength=len(x))
-        person = np.bincount(cand.comp.ravel(), weights=(truth[0] > 0).ravel(),
-                             minlength=len(x)) >= 0.5 * size
-        big = ~np.isnan(x).any(1)
-        near = beside(x, touching(cand.comp), person & big, level) & big
-        n_all += int(big.sum())
-        n_all_p += int((person & big).sum())
-        n_near += int(near.sum())
-        n_near_p += int((person & near).sum())
+    for s in range(0, len(chosen), 16):
+        part = chosen[s:s + 16]
+        depth, truth = read_frames(part)
+        for i, (path, _, _) in enumerate(part):
+            info = infos[path]
+            labels = at(info.fx, info.fy).predict(depth[i])
+            cand = seg.candidates(depth[i], info.intrinsics, labels)
+            x = seg.describe(cand, depth[i], info.intrinsics, labels)
+            size = np.bincount(cand.comp.ravel(), minlength=len(x))
+            person = np.bincount(cand.comp.ravel(), weights=(truth[i] > 0).ravel(),
+                                 minlength=len(x)) >= 0.5 * size
+            big = ~np.isnan(x).any(1)
+            near = beside(x, neighbour_pairs(cand.comp), person & big, level) & big
+            n_all += int(big.sum())
+            n_all_p += int((person & big).sum())
+            n_near += int(near.sum())
+            n_near_p += int((person & near).sum())
     q0, q = n_all_p / n_all, n_near_p / max(n_near, 1)
     r = (q / (1 - q)) / (q0 / (1 - q0)) if q < 1 else np.inf
     print(f"prior: {n_all_p} people of {n_all} candidates; {n_near_p} of the {n_near} "
@@ -113,7 +107,7 @@ def main() -> None:
     ap.add_argument("--prior-frames", type=int, default=320)
     a = ap.parse_args()
 
-    from vhgen.forest.persons import PeopleScore, frame_people
+    from vhgen.forest.persons import PeopleScore, frame_people, neighbour_pairs
     from vhgen.forest.segment import FEATURES, Segmenter
     from vhgen.forest.trees import Forest, predictors_at_focal
 
@@ -124,7 +118,7 @@ def main() -> None:
     p_star = a.p_star if a.p_star is not None else measure_p_star(forest, a.level_tops,
                                                                   a.prior_frames)
     seg = Segmenter()
-    w, body = FEATURES.index("width_m"), FEATURES.index("body")
+    body = FEATURES.index("body")
     at = predictors_at_focal(forest)
     for store in a.stores:
         info, depth, inst = frames_of(store, a.frames)
@@ -137,7 +131,7 @@ def main() -> None:
             size = np.bincount(cand.comp.ravel(), minlength=len(x))
             person = np.bincount(cand.comp.ravel(), weights=(inst[i] > 0).ravel(),
                                  minlength=len(x)) >= 0.5 * size
-            rows.append((cand.comp, x, person, touching(cand.comp)))
+            rows.append((cand.comp, x, person, neighbour_pairs(cand.comp)))
         for factor in (float(v) for v in a.vote.split(",")):
             for rule in (False, True):
                 score = PeopleScore()
@@ -145,11 +139,10 @@ def main() -> None:
                     xv = x.copy()
                     xv[person, body] *= factor
                     p = stage.predict_proba(xv)
-                    wide = ~(x[:, w] < seg.min_width_m)
-                    ok = (p >= seg.min_person_prob) & wide
-                    ok[0] = False
-                    if rule:
-                        ok |= beside(x, pairs, ok, a.level_tops) & (p >= p_star) & wide
+                    ok = seg.stage_calls(x, p)
+                    if rule:  # below the stage's odds, as wide as it asks
+                        ok |= beside(x, pairs, ok, a.level_tops) & seg.stage_calls(
+                            x, np.where(p >= p_star, 1.0, 0.0))
                     ids = np.where(ok[comp], comp, 0).astype(np.int32)
                     score.add(frame_people(ids, depth[i], inst[i]), (store, i))
                 res = score.result()

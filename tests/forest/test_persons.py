@@ -18,6 +18,7 @@ from vhgen.forest.persons import (
     distance_bin,
     frame_people,
     group_bin,
+    neighbour_pairs,
     table,
 )
 
@@ -117,7 +118,6 @@ def test_everyone_found_counts_frames_whose_every_person_is():
     assert "all found" in table(res) and "0.500" in table(res)
 
 
-
 def test_false_people_are_called_instances_mostly_not_a_person():
     """With the calls given as instance ids, a called instance less than half of whose
     measured pixels are a person's is a false person; exactly half is not one. A bare
@@ -160,6 +160,7 @@ def test_false_people_are_called_instances_mostly_not_a_person():
     assert "false_per_frame" not in plain.result()["overall"]
     assert "false/frame" not in table(plain.result())
 
+
 def test_frames_whose_background_is_called_past_three_percent():
     """A frame's background called: its measured pixels on no person that are called,
     over those pixels (68 of the known frame's wall). 3 of 68 is over 3%, 2 of 68 not;
@@ -185,6 +186,16 @@ def test_frames_whose_background_is_called_past_three_percent():
     assert res["background_share"] == 0.03 and "bg>3%" in table(res)
     nothing = frame_people(np.zeros_like(called), depth, np.full_like(inst, 1))
     assert nothing.background == 0 and nothing.background_called == 0.0
+
+
+def test_neighbour_pairs_are_the_4_neighbours_of_different_ids():
+    ids = np.array([[1, 1, 0, 3],
+                    [2, 1, 0, 3],
+                    [0, 2, 4, 0]], np.int32)  # 2 touches 1 twice and 4; 4, 3 by a corner
+    assert neighbour_pairs(ids).tolist() == [[1, 2], [2, 1], [2, 4], [4, 2]]
+    ids[2, 3] = 3  # now by an edge
+    assert neighbour_pairs(ids).tolist() == [[1, 2], [2, 1], [2, 4], [3, 4], [4, 2], [4, 3]]
+    assert neighbour_pairs(np.zeros((3, 3), np.int32)).shape == (0, 2)
 
 
 def test_one_pixel_short_of_half_is_not_found():

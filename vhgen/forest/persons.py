@@ -73,13 +73,20 @@ def group_bin(people: int | None) -> str:
     return f">{GROUP_BINS[-1][1]}"
 
 
+def neighbour_pairs(ids: np.ndarray) -> np.ndarray:
+    """(K, 2) int64: every ordered pair (a, b) of different non-zero ids of the (H, W)
+    image ``ids`` that are 4-neighbours somewhere, each pair once."""
+    pairs = [np.stack([a[m], b[m]], 1).astype(np.int64)
+             for a, b in ((ids[:, :-1], ids[:, 1:]), (ids[:-1], ids[1:]))
+             for m in [(a > 0) & (b > 0) & (a != b)]]
+    both = np.concatenate(pairs)
+    return np.unique(np.concatenate([both, both[:, ::-1]]), axis=0)
+
+
 def _touching(instances: np.ndarray) -> np.ndarray:
     """(256,) bool: instance ids with a 4-neighbour of another instance (not 0)."""
     out = np.zeros(256, bool)
-    for a, b in ((instances[:, :-1], instances[:, 1:]), (instances[:-1], instances[1:])):
-        m = (a > 0) & (b > 0) & (a != b)
-        out[a[m]] = True
-        out[b[m]] = True
+    out[neighbour_pairs(instances)[:, 0]] = True
     return out
 
 

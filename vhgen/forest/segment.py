@@ -503,10 +503,16 @@ class Segmenter:
             comp, table = self.cluster_table(depth_mm, intr, np.asarray(labels))
             return comp, self.is_person(table)
         comp, x, p = self.person_probability(depth_mm, intr, labels, stage)
+        return comp, self.stage_calls(x, p)
+
+    def stage_calls(self, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """(n + 1,) bool: the candidates of features ``x`` the stage calls people, given
+        its probabilities ``p`` (:meth:`person_probability`): at least
+        ``min_person_prob`` and at least ``min_width_m`` wide. Index 0 is False."""
         ok = p >= self.min_person_prob
         ok &= ~(x[:, FEATURES.index("width_m")] < self.min_width_m)  # NaN rows: the stage's 0
         ok[0] = False
-        return comp, ok
+        return ok
 
     def person_probability(self, depth_mm: np.ndarray, intr: Intrinsics, labels: np.ndarray,
                            stage: PersonStage) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
