@@ -338,8 +338,25 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
     assert lineup.seed != test.seed
     for held_out in (test, lineup):
         for name in ("people_room", "people_real", "people_groups", "people_far",
-                     "people_lines"):
+                     "people_lines", "people_things"):
             train = JobConfig.load(configs / f"{name}.yaml")
             assert not ({Path(m).name for m in held_out.motions}
                         & {Path(m).name for m in train.motions})
             assert held_out.seed != train.seed
+
+
+def test_people_things_config_draws_person_sized_things_more():
+    """configs/forest/people_things.yaml (an opt-in store of the person stage): every
+    clutter kind, the free-standing person-sized ones the recipe's stage took for people
+    drawn more often than any other."""
+    from pathlib import Path
+
+    from vhgen.job_config import JobConfig
+    from vhgen.scene.clutter.kinds import CLUTTER_KINDS
+
+    path = Path(__file__).resolve().parents[2] / "configs" / "forest" / "people_things.yaml"
+    clutter = JobConfig.load(path).scene.clutter
+    weight = dict(zip(clutter.kinds, clutter.weights, strict=True))
+    assert set(weight) == set(CLUTTER_KINDS)
+    tall = ("chair", "coat_stand", "plant", "lamp", "door", "bookcase")
+    assert min(weight[k] for k in tall) > max(w for k, w in weight.items() if k not in tall)
