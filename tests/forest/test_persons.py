@@ -349,13 +349,11 @@ def test_people_things_config_draws_person_sized_things_more():
     """configs/forest/people_things.yaml (an opt-in store of the person stage): every
     clutter kind, the free-standing person-sized ones the recipe's stage took for people
     drawn more often than any other."""
-    from pathlib import Path
-
     from vhgen.job_config import JobConfig
     from vhgen.scene.clutter.kinds import CLUTTER_KINDS
+    from vhgen.yamlio import configs_dir
 
-    path = Path(__file__).resolve().parents[2] / "configs" / "forest" / "people_things.yaml"
-    clutter = JobConfig.load(path).scene.clutter
+    clutter = JobConfig.load(configs_dir() / "forest" / "people_things.yaml").scene.clutter
     weight = dict(zip(clutter.kinds, clutter.weights, strict=True))
     assert set(weight) == set(CLUTTER_KINDS)
     tall = ("chair", "coat_stand", "plant", "lamp", "door", "bookcase")
