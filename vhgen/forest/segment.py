@@ -71,6 +71,7 @@ import numpy as np
 
 from vhgen.camera import Intrinsics, backproject
 from vhgen.forest.person_stage import PersonStage
+from vhgen.geom.normals import patch_normals, surface_shares
 from vhgen.geom.planes import depth_noise as _depth_noise
 from vhgen.geom.planes import find_plane as _find_plane
 from vhgen.geom.planes import on_plane as _on_plane
@@ -81,11 +82,14 @@ from vhgen.geom.planes import triples as _triples
 # where the forest's parts lie in the candidate (part_features): read by stages trained
 # with them (forest person-stage --part-order), 0 for others; FEATURES' last columns
 PART_FEATURES = ("part_order", "top_parts", "bottom_parts")
+# what the candidate's surface normals say of its shape (vhgen.geom.normals.surface_shares):
+# people are rounded, the things taken for them mostly flat pieces
+SURFACE_FEATURES = ("smooth_share", "flat_share", "upright_share", "level_share")
 # what the person stage (vhgen.forest.person_stage) sees of a candidate (Segmenter.features)
 FEATURES = ("depth_m", "area_m2", "has_floor", "top_m", "bottom_m", "height_m",
             "width_m", "thickness_m", "head_width_m", "shoulder_width_m", "fill",
             "in_front", "at_image_edge", "body", "coherence", "parts", "behind",
-            "column_height_m", "column_share", *PART_FEATURES)
+            "column_height_m", "column_share", *SURFACE_FEATURES, *PART_FEATURES)
 PART_COLUMNS = slice(len(FEATURES) - len(PART_FEATURES), None)
 # the candidate's height (2nd to 98th percentile) in tenths, for where the forest's parts
 # lie in it (Segmenter.part_histograms); its top fifth and lowest 30% for top_parts and
@@ -374,7 +378,12 @@ class Segmenter:
         to the highest point of the candidates whose centres on the floor lie within
         ``column_m`` of this one's (itself and smaller ones included), and
         ``column_share`` its share of their pixels: a piece of a person seen past someone
-        in front is short, but its column is as tall as the person. ``part_order``,
+        in front is short, but its column is as tall as the person. The
+        :data:`SURFACE_FEATURES` say what its surface normals do
+        (:func:`vhgen.geom.normals.surface_shares` over 5 cm patches): the share of its
+        pixels with a normal, and of those the share within 15 deg of their dominant
+        direction, facing sideways and facing up or down (a person is rounded; a chair,
+        a door or a bookcase is flat pieces). ``part_order``,
         ``top_parts`` and ``bottom_parts`` say whether the forest's parts lie where they
         lie on a person (:func:`part_features`, given the stage's ``part_heights``; 0
         without them).
@@ -444,7 +453,10 @@ class Segmenter:
                       table["body"][c], table["coherence"][c], float(table["parts"][c]),
                       _outline_share(comp[around] == c, valid[around], z_img[around],
                                      self.jump_m, unmeasured=False, nearer=True),
-                      0.0, 0.0, 0.0, 0.0, 0.0)  # the column's two and the parts', below
+                      0.0, 0.0,  # the column's two, below
+                      *surface_shares(patch_normals(points[around], comp[around] == c,
+                                                    intr.fx), up, len(p)),
+                      0.0, 0.0, 0.0)  # the parts', below
             top[c], bottom[c] = hi, lo
         # the column: every candidate whose centre on the floor is within column_m of
         # this one's (the small ones by their extreme heights, the others by the 2nd and
