@@ -321,8 +321,9 @@ def test_eval_flag_errors_are_one_line(tmp_path, capsys, boxes_store):
 
 def test_people_test_config_is_held_out_and_covers_the_bins():
     """configs/forest/people_test.yaml: groups of 1-6, the first person 1-4 m away (the
-    others up to 1.5 m further), and no motion or seed of the training configs (the
-    forests' and the person stage's, and the lines tried as training data)."""
+    others up to 1.5 m further); it, the lines and the offices have no motion or seed of
+    the training configs (the forests' and the person stage's, and the lines tried as
+    training data)."""
     from pathlib import Path
 
     from vhgen.job_config import JobConfig
@@ -336,7 +337,12 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
     assert lineup.scene.people == (4, 6) and lineup.scene.lineup is not None
     assert lineup.scene.lineup.share == 1.0
     assert lineup.seed != test.seed
-    for held_out in (test, lineup):
+    # the offices full of chairs (people_office_test.yaml): 1-2 people, mostly chairs
+    office = JobConfig.load(configs / "people_office_test.yaml")
+    assert office.scene.people == (1, 2) and office.seed not in (test.seed, lineup.seed)
+    weight = dict(zip(office.scene.clutter.kinds, office.scene.clutter.weights, strict=True))
+    assert weight["chair"] > 2 * max(w for k, w in weight.items() if k != "chair")
+    for held_out in (test, lineup, office):
         for name in ("people_room", "people_real", "people_groups", "people_far",
                      "people_lines", "people_things"):
             train = JobConfig.load(configs / f"{name}.yaml")
@@ -346,7 +352,7 @@ def test_people_test_config_is_held_out_and_covers_the_bins():
 
 
 def test_people_things_config_draws_person_sized_things_more():
-    """configs/forest/people_things.yaml (an opt-in store of the person stage): every
+    """configs/forest/people_things.yaml (the recipe's fifth person-stage store): every
     clutter kind, the free-standing person-sized ones the recipe's stage took for people
     drawn more often than any other."""
     from vhgen.job_config import JobConfig
