@@ -440,22 +440,22 @@ class Segmenter:
             # the outline's pairs lie within one pixel of the candidate's box
             around = (slice(max(ys.start - 1, 0), ys.stop + 1),
                       slice(max(xs.start - 1, 0), xs.stop + 1))
+            mine = comp[around] == c
             out[c] = (float(np.median(z)), np.log(max(area, 1e-6)), float(on_floor),
                       hi if on_floor else height, lo if on_floor else 0.0, height, width,
                       float(np.percentile(z, 95) - np.percentile(z, 5)),
                       _spread(q[head]).max() if head.sum() >= 3 else 0.0,
                       _spread(q[shoulders]).max() if shoulders.sum() >= 3 else 0.0,
                       area / max(height * width, 1e-6),
-                      _outline_share(comp[around] == c, valid[around], z_img[around],
+                      _outline_share(mine, valid[around], z_img[around],
                                      self.jump_m, unmeasured=True),
                       float(min(ys.start - seen[0], seen[1] - ys.stop, xs.start - seen[2],
                                 seen[3] - xs.stop) < self.edge_px),
                       table["body"][c], table["coherence"][c], float(table["parts"][c]),
-                      _outline_share(comp[around] == c, valid[around], z_img[around],
+                      _outline_share(mine, valid[around], z_img[around],
                                      self.jump_m, unmeasured=False, nearer=True),
                       0.0, 0.0,  # the column's two, below
-                      *surface_shares(patch_normals(points[around], comp[around] == c,
-                                                    intr.fx), up, len(p)),
+                      *surface_shares(patch_normals(points[around], mine, intr.fx), up, len(p)),
                       0.0, 0.0, 0.0)  # the parts', below
             top[c], bottom[c] = hi, lo
         # the column: every candidate whose centre on the floor is within column_m of

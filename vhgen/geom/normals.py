@@ -46,12 +46,11 @@ def patch_normals(points: np.ndarray, mask: np.ndarray, fx: float, scale_m: floa
     h = k // 2 + 1
     if full.shape[0] <= 2 * h or full.shape[1] <= 2 * h:
         return np.zeros((0, 3))
-    ok = np.zeros_like(full)
-    ok[h:-h, h:-h] = (full[h:-h, h:-h] & full[h:-h, 2 * h:] & full[h:-h, :-2 * h]
-                      & full[2 * h:, h:-h] & full[:-2 * h, h:-h])
+    # the pixels h or more from the border whose patch and both partners lie in the mask
+    inner = (full[h:-h, h:-h] & full[h:-h, 2 * h:] & full[h:-h, :-2 * h]
+             & full[2 * h:, h:-h] & full[:-2 * h, h:-h])
     dx = sm[h:-h, 2 * h:] - sm[h:-h, :-2 * h]
     dy = sm[2 * h:, h:-h] - sm[:-2 * h, h:-h]
-    inner = ok[h:-h, h:-h]
     n = np.cross(dx[inner], dy[inner])
     length = np.linalg.norm(n, axis=1)
     n = n[length > 0] / length[length > 0, None]
